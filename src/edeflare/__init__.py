@@ -1,0 +1,56 @@
+"""edeflare: remove lens flare from event-camera data (E-Deflare).
+
+The public surface re-exported here is what most users need; every module
+documents its own in ``__all__``.
+
+Examples
+--------
+>>> import edeflare
+>>> ev = edeflare.make_events([0, 10], [1, 2], [3, 4], [1, 0])
+>>> edeflare.encode(ev, (8, 8), 0, 20_000).shape
+(8, 8, 8)
+"""
+
+from __future__ import annotations
+
+from .errors import EdeflareError, EventFileError, EventsError, UnknownFormatError
+from .events import (
+    EVENT_DTYPE,
+    center_crop,
+    check_events,
+    crop,
+    iter_time_windows,
+    make_events,
+    merge_events,
+    slice_time,
+    sort_events,
+)
+from .io import iter_windows, open_events, read_events, write_event_chunks, write_events
+from .voxel import decode, encode, encode_polarity
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "EVENT_DTYPE",
+    "EdeflareError",
+    "EventFileError",
+    "EventsError",
+    "UnknownFormatError",
+    "__version__",
+    "center_crop",
+    "check_events",
+    "crop",
+    "decode",
+    "encode",
+    "encode_polarity",
+    "iter_time_windows",
+    "iter_windows",
+    "make_events",
+    "merge_events",
+    "open_events",
+    "read_events",
+    "slice_time",
+    "sort_events",
+    "write_event_chunks",
+    "write_events",
+]

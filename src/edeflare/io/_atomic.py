@@ -1,0 +1,60 @@
+"""Atomic file writes: a temporary file in the target folder, then ``os.replace``."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["AtomicFile", "atomic_path"]
+
+
+class AtomicFile:
+    """A temporary path beside ``path`` that becomes ``path`` on :meth:`commit`.
+
+    The temporary name keeps the target's suffix (writers that choose the
+    format by suffix still work), starts with ``.`` and contains
+    ``.partial``. Until :meth:`commit`, ``path`` is untouched: an error or a
+    killed process leaves the old file or none, never a half-written one.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(
+            prefix=f".{self.path.name}.", suffix=f".partial{self.path.suffix}", dir=self.path.parent
+        )
+        os.close(fd)
+        self.tmp = Path(name)
+
+    def commit(self) -> None:
+        """Move the finished temporary file onto the target."""
+        os.replace(self.tmp, self.path)
+
+    def discard(self) -> None:
+        """Delete the temporary file (idempotent)."""
+        with contextlib.suppress(FileNotFoundError):
+            self.tmp.unlink()
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; move it onto ``path`` if the body succeeds.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> target = pathlib.Path(tempfile.mkdtemp()) / "out.txt"
+    >>> with atomic_path(target) as tmp:
+    ...     _ = tmp.write_text("done")
+    >>> target.read_text()
+    'done'
+    """
+    atomic = AtomicFile(path)
+    try:
+        yield atomic.tmp
+        atomic.commit()
+    finally:
+        atomic.discard()
