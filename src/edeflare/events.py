@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from typing import Any
 
+import numba
 import numpy as np
 
 from .errors import EventsError
@@ -194,6 +195,40 @@ def make_events(
     return events
 
 
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _scan(t, x, y, p):  # pragma: no cover - compiled
+    """One pass over a stream: (index of first decreasing t or -1, max x, max y, max p)."""
+    n_blocks = 16
+    block = (t.size + n_blocks - 1) // n_blocks
+    stats = np.zeros((n_blocks, 4), dtype=np.int64)
+    for k in numba.prange(n_blocks):
+        lo = k * block
+        hi = min(t.size, lo + block)
+        decreasing = False
+        max_x = 0
+        max_y = 0
+        max_p = 0
+        for i in range(lo, hi):  # branch-free body so the loop vectorises
+            if i > 0:
+                decreasing |= t[i] < t[i - 1]
+            max_x = max(max_x, np.int64(x[i]))
+            max_y = max(max_y, np.int64(y[i]))
+            max_p = max(max_p, np.int64(p[i]))
+        stats[k, 0] = decreasing
+        stats[k, 1] = max_x
+        stats[k, 2] = max_y
+        stats[k, 3] = max_p
+    first_bad = -1
+    for k in range(n_blocks):
+        if stats[k, 0]:
+            for i in range(max(1, k * block), min(t.size, (k + 1) * block)):
+                if t[i] < t[i - 1]:
+                    first_bad = i
+                    break
+            break
+    return first_bad, stats[:, 1].max(), stats[:, 2].max(), stats[:, 3].max()
+
+
 def check_events(events: Any, sensor_size: SensorSize | None = None) -> np.ndarray:
     """Validate an event stream and return it unchanged.
 
@@ -228,22 +263,22 @@ def check_events(events: Any, sensor_size: SensorSize | None = None) -> np.ndarr
         if sensor_size is not None:
             check_sensor_size(sensor_size)
         return events
-    t = events["t"]
-    if events.size > 1:
-        dec = t[1:] < t[:-1]
-        if dec.any():
-            i = int(np.flatnonzero(dec)[0]) + 1
-            raise EventsError(
-                f"timestamps are not sorted: t={t[i]} at index {i} follows t={t[i - 1]}"
-            )
-    if events["p"].max() > 1:
+    # One compiled pass instead of four numpy reductions (each would copy a strided field).
+    first_bad, max_x, max_y, max_p = _scan(events["t"], events["x"], events["y"], events["p"])
+    if first_bad >= 0:
+        t = events["t"]
+        i = int(first_bad)
+        raise EventsError(
+            f"timestamps are not sorted: t={t[i]} at index {i} follows t={t[i - 1]}"
+        )
+    if max_p > 1:
         i = int(np.flatnonzero(events["p"] > 1)[0])
         raise EventsError(f"polarity must be 0 or 1, got p={events['p'][i]} at index {i}")
     if sensor_size is not None:
         width, height = check_sensor_size(sensor_size)
-        for name, limit, label in (("x", width, "width"), ("y", height, "height")):
-            coord = events[name]
-            if coord.max() >= limit:
+        for name, peak, limit, label in (("x", max_x, width, "width"), ("y", max_y, height, "height")):
+            if peak >= limit:
+                coord = events[name]
                 i = int(np.flatnonzero(coord >= limit)[0])
                 raise EventsError(
                     f"{name} out of range for sensor {label} {limit}: {name}={coord[i]} at index {i}"

@@ -26,7 +26,7 @@ from .events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size
 
 __all__ = ["decode", "encode", "encode_polarity"]
 
-# Windows longer than this are sorted with numpy instead of a counting sort.
+# Windows longer than this (16.8 s) are sorted with numpy instead of a counting sort.
 _COUNTING_SORT_MAX_US = 1 << 24
 
 
@@ -49,22 +49,50 @@ def _checked(events: Any, sensor_size: SensorSize, window_start_us: int, window_
 
 
 @numba.njit(cache=True, nogil=True)
-def _encode_signed(t, x, y, p, start, window, out):  # pragma: no cover - compiled
-    bins = out.shape[0]
-    for i in range(t.size):
-        b = ((t[i] - start) * bins) // window
-        if p[i]:
-            out[b, y[i], x[i]] += 1.0
-        else:
-            out[b, y[i], x[i]] -= 1.0
+def _bin_bounds(t, start, window, bins):  # pragma: no cover - compiled
+    """Index of the first event of each bin in a sorted window (``bins + 1`` entries).
+
+    Bin ``b`` holds the integer times from ``start + ceil(b*window/bins)`` up
+    to the next bin's first time: exactly the events with
+    ``(t - start)*bins // window == b``. Binary search on the (strided) field,
+    so nothing is copied.
+    """
+    bounds = np.empty(bins + 1, dtype=np.int64)
+    for b in range(bins + 1):
+        first_time = start + (b * window + bins - 1) // bins
+        lo, hi = 0, t.size
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if t[mid] < first_time:
+                lo = mid + 1
+            else:
+                hi = mid
+        bounds[b] = lo
+    return bounds
 
 
-@numba.njit(cache=True, nogil=True)
-def _encode_split(t, x, y, p, start, window, out):  # pragma: no cover - compiled
-    bins = out.shape[1]
-    for i in range(t.size):
-        b = ((t[i] - start) * bins) // window
-        out[0 if p[i] else 1, b, y[i], x[i]] += 1.0
+# Sorted input lets each bin be a contiguous run of events: no per-event
+# division, and bins are independent, so they are filled in parallel.
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _encode_signed(x, y, p, bounds, out):  # pragma: no cover - compiled
+    bins, height, width = out.shape
+    for b in numba.prange(bins):
+        plane = out[b].reshape(height * width)
+        for i in range(bounds[b], bounds[b + 1]):
+            plane[np.int64(y[i]) * width + x[i]] += np.float32(2 * np.int32(p[i]) - 1)
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _encode_split(x, y, p, bounds, out):  # pragma: no cover - compiled
+    _, bins, height, width = out.shape
+    for b in numba.prange(bins):
+        on = out[0, b].reshape(height * width)
+        off = out[1, b].reshape(height * width)
+        for i in range(bounds[b], bounds[b + 1]):
+            k = np.int64(y[i]) * width + x[i]
+            pi = np.float32(p[i])
+            on[k] += pi
+            off[k] += np.float32(1.0) - pi
 
 
 def encode(
@@ -106,10 +134,8 @@ def encode(
     width, height = _checked(events, sensor_size, window_start_us, window_us, bins)
     out = np.zeros((bins, height, width), dtype=np.float32)
     if events.size:
-        _encode_signed(
-            events["t"], events["x"], events["y"], events["p"],
-            np.int64(window_start_us), np.int64(window_us), out,
-        )
+        bounds = _bin_bounds(events["t"], np.int64(window_start_us), np.int64(window_us), bins)
+        _encode_signed(events["x"], events["y"], events["p"], bounds, out)
     return out
 
 
@@ -135,50 +161,50 @@ def encode_polarity(
     width, height = _checked(events, sensor_size, window_start_us, window_us, bins)
     out = np.zeros((2, bins, height, width), dtype=np.float32)
     if events.size:
-        _encode_split(
-            events["t"], events["x"], events["y"], events["p"],
-            np.int64(window_start_us), np.int64(window_us), out,
-        )
+        bounds = _bin_bounds(events["t"], np.int64(window_start_us), np.int64(window_us), bins)
+        _encode_split(events["x"], events["y"], events["p"], bounds, out)
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _expand(cells, counts, bins, height, width, window, u, off, x, y, p):  # pragma: no cover
+def _decode_into(cells, counts, bins, height, width, start, window, u, t, x, y, p):  # pragma: no cover
+    """Draw each cell's events and place them in time order by a counting sort.
+
+    Pass 1 draws every event's integer offset in its bin and histograms the
+    offsets (O(n + window)); pass 2 walks the cells in the same order and
+    writes each event straight to its sorted position, so ties keep cell order.
+    """
     plane = height * width
+    total = u.size
+    off = np.empty(total, dtype=np.int64)
+    slot = np.zeros(window + 1, dtype=np.int64)
     j = 0
     for c in range(cells.size):
-        cell = cells[c]
-        n = counts[c]
-        b = cell // plane
-        rem = cell - b * plane
+        b = cells[c] // plane
+        lo = (b * window + bins - 1) // bins  # first integer offset of bin b
+        span = ((b + 1) * window + bins - 1) // bins - lo
+        for _ in range(abs(counts[c])):
+            o = lo + np.int64(u[j] * span)
+            off[j] = o
+            slot[o + 1] += 1
+            j += 1
+    for k in range(window):
+        slot[k + 1] += slot[k]
+    j = 0
+    for c in range(cells.size):
+        rem = cells[c] % plane
         yy = rem // width
         xx = rem - yy * width
-        lo = (b * window + bins - 1) // bins  # first integer offset in bin b
-        hi = ((b + 1) * window + bins - 1) // bins
-        span = hi - lo
-        pol = 1 if n > 0 else 0
-        for _ in range(abs(n)):
-            off[j] = lo + np.int64(u[j] * span)
-            x[j] = xx
-            y[j] = yy
-            p[j] = pol
+        pol = 1 if counts[c] > 0 else 0
+        for _ in range(abs(counts[c])):
+            o = off[j]
+            pos = slot[o]
+            slot[o] = pos + 1
+            t[pos] = start + o
+            x[pos] = xx
+            y[pos] = yy
+            p[pos] = pol
             j += 1
-
-
-@numba.njit(cache=True, nogil=True)
-def _counting_order(off, window):  # pragma: no cover - compiled
-    """Stable order of ``off`` (integers in [0, window)) by counting sort: O(n + window)."""
-    start = np.zeros(window + 1, dtype=np.int64)
-    for j in range(off.size):
-        start[off[j] + 1] += 1
-    for k in range(window):
-        start[k + 1] += start[k]
-    order = np.empty(off.size, dtype=np.int64)
-    for j in range(off.size):
-        k = off[j]
-        order[start[k]] = j
-        start[k] += 1
-    return order
 
 
 def decode(
@@ -234,18 +260,31 @@ def decode(
     cell_counts = counts[cells]
     total = int(np.abs(cell_counts).sum())
     u = rng.random(total)
-    off = np.empty(total, dtype=np.int64)
-    x = np.empty(total, dtype=np.uint16)
-    y = np.empty(total, dtype=np.uint16)
-    p = np.empty(total, dtype=np.uint8)
-    _expand(cells, cell_counts, bins, height, width, window_us, u, off, x, y, p)
-    if window_us <= _COUNTING_SORT_MAX_US:
-        order = _counting_order(off, window_us)
-    else:
-        order = np.argsort(off, kind="stable")
     events = np.empty(total, dtype=EVENT_DTYPE)
-    events["t"] = off[order] + int(window_start_us)
-    events["x"] = x[order]
-    events["y"] = y[order]
-    events["p"] = p[order]
+    if window_us <= _COUNTING_SORT_MAX_US:
+        _decode_into(cells, cell_counts, bins, height, width, np.int64(window_start_us),
+                     np.int64(window_us), u, events["t"], events["x"], events["y"], events["p"])
+    else:  # very long windows: a histogram per microsecond would be too large
+        events = _decode_by_argsort(cells, cell_counts, bins, height, width,
+                                    int(window_start_us), window_us, u)
+    return events
+
+
+def _decode_by_argsort(
+    cells: np.ndarray, counts: np.ndarray, bins: int, height: int, width: int,
+    start: int, window: int, u: np.ndarray,
+) -> np.ndarray:
+    """Vectorised decode with a stable argsort, for windows too long for a counting sort."""
+    reps = np.abs(counts)
+    cell = np.repeat(cells, reps)
+    b, rem = np.divmod(cell, height * width)
+    lo = (b * window + bins - 1) // bins
+    span = ((b + 1) * window + bins - 1) // bins - lo
+    off = lo + (u * span).astype(np.int64)
+    order = np.argsort(off, kind="stable")
+    events = np.empty(cell.size, dtype=EVENT_DTYPE)
+    events["t"] = start + off[order]
+    events["y"] = (rem // width)[order]
+    events["x"] = (rem % width)[order]
+    events["p"] = np.repeat(counts > 0, reps)[order]
     return events

@@ -249,6 +249,14 @@ class EventSource:
 
     def read(self) -> np.ndarray:
         """All events of the file in one array."""
+        if self._format.opener is None:  # DSEC knows its length: read into one array
+            size = self.sensor_size
+            with DsecReader(self.path) as reader:
+                events = reader.read()
+            try:
+                return check_events(events, size)
+            except EventsError as exc:
+                raise EventFileError(self.path, str(exc)) from None
         parts = list(self.chunks())
         if not parts:
             return np.zeros(0, dtype=EVENT_DTYPE)

@@ -11,6 +11,12 @@ from pathlib import Path
 __all__ = ["AtomicFile", "atomic_path"]
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 class AtomicFile:
     """A temporary path beside ``path`` that becomes ``path`` on :meth:`commit`.
 
@@ -30,7 +36,8 @@ class AtomicFile:
         self.tmp = Path(name)
 
     def commit(self) -> None:
-        """Move the finished temporary file onto the target."""
+        """Move the finished temporary file onto the target (with the usual umask mode)."""
+        os.chmod(self.tmp, 0o666 & ~_umask())
         os.replace(self.tmp, self.path)
 
     def discard(self) -> None:

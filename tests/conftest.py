@@ -1,0 +1,94 @@
+"""Shared fixtures and helpers for the edeflare test suite.
+
+- ``rng``: a seeded :class:`numpy.random.Generator` (seed 1234), fresh per test.
+- ``real_data`` / ``golden_data``: the shared real recordings and golden files
+  beside the repository (``../shared/data/``); tests using them skip cleanly
+  when the folder is absent (as it is for a user who installs the package).
+- :func:`random_events`: a sorted random stream of :data:`EVENT_DTYPE`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, settings
+
+from edeflare.events import EVENT_DTYPE, SensorSize
+
+# Deterministic property tests that write no example database into the repository.
+settings.register_profile(
+    "edeflare",
+    database=None,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+settings.load_profile("edeflare")
+
+SHARED_DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+
+
+def real_data_dir() -> Path:
+    """``../shared/data/real`` (resolved); skip the calling test when it is absent."""
+    path = (SHARED_DATA / "real").resolve()
+    if not path.is_dir():
+        pytest.skip("shared real recordings absent")
+    return path
+
+
+def golden_data_dir() -> Path:
+    """``../shared/data/golden`` (resolved); skip the calling test when it is absent."""
+    path = (SHARED_DATA / "golden").resolve()
+    if not path.is_dir():
+        pytest.skip("shared golden files absent")
+    return path
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A freshly seeded generator, so every test draws the same numbers on every run."""
+    return np.random.default_rng(1234)
+
+
+@pytest.fixture
+def real_data() -> Path:
+    """Folder of the shared real recordings (skips when absent)."""
+    return real_data_dir()
+
+
+@pytest.fixture
+def golden_data() -> Path:
+    """Folder of the shared golden reference files (skips when absent)."""
+    return golden_data_dir()
+
+
+def random_events(
+    rng: np.random.Generator,
+    n: int,
+    sensor_size: SensorSize,
+    t0: int = 0,
+    span_us: int = 1_000_000,
+) -> np.ndarray:
+    """``n`` random events on ``sensor_size`` with ``t`` in ``[t0, t0 + span_us)``, sorted.
+
+    Timestamps are drawn with replacement, so ties occur; the sort is stable.
+    """
+    width, height = sensor_size
+    events = np.empty(n, dtype=EVENT_DTYPE)
+    events["t"] = np.sort(rng.integers(0, span_us, n)) + t0
+    events["x"] = rng.integers(0, width, n)
+    events["y"] = rng.integers(0, height, n)
+    events["p"] = rng.integers(0, 2, n)
+    return events
+
+
+def same_events(a: np.ndarray, b: np.ndarray) -> bool:
+    """True when two streams hold the same events in the same order (field by field)."""
+    return (
+        a.dtype == EVENT_DTYPE
+        and b.dtype == EVENT_DTYPE
+        and a.shape == b.shape
+        and all(np.array_equal(a[k], b[k]) for k in ("t", "x", "y", "p"))
+    )
