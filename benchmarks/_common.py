@@ -24,7 +24,9 @@ def best_of(fn: Callable[[], object], repeat: int = 3) -> float:
     return min(times)
 
 
-def random_events(n: int, sensor_size: tuple[int, int], t0: int, span_us: int, seed: int = 0) -> np.ndarray:
+def random_events(
+    n: int, sensor_size: tuple[int, int], t0: int, span_us: int, seed: int = 0
+) -> np.ndarray:
     """``n`` sorted uniform random events in ``[t0, t0 + span_us)``."""
     from edeflare.events import EVENT_DTYPE
 
@@ -47,8 +49,12 @@ def report(name: str, rows: list[dict[str, object]], columns: list[str]) -> None
     RESULTS.mkdir(exist_ok=True)
     payload = {
         "benchmark": name,
-        "machine": {"python": platform.python_version(), "processor": platform.processor(),
-                    "system": platform.platform(), "numpy": np.__version__},
+        "machine": {
+            "python": platform.python_version(),
+            "processor": platform.processor(),
+            "system": platform.platform(),
+            "numpy": np.__version__,
+        },
         "date": time.strftime("%Y-%m-%d %H:%M:%S"),
         "rows": rows,
     }

@@ -68,12 +68,28 @@ def main() -> None:
         t_rs = best_of(lambda: np.load(npy), repeat=2)
         mb_h5, mb_npy = h5.stat().st_size / 2**20, npy.stat().st_size / 2**20
         for op, t, ref, mb in (("write", t_w, t_ws, mb_h5), ("read", t_r, t_rs, mb_h5)):
-            rows.append({"case": f"DSEC {op} 10M", "seconds": t, "Mev_per_s": args.events / t / 1e6,
-                         "reference": f"np.{'save' if op == 'write' else 'load'} {ref:.3f}s",
-                         "ratio_vs_ref": t / ref, "file_MiB": mb, "peak_RSS_MiB": ""})
-        rows.append({"case": "npy (reference)", "seconds": t_ws + t_rs, "Mev_per_s": "",
-                     "reference": "", "ratio_vs_ref": 1.0, "file_MiB": mb_npy, "peak_RSS_MiB": ""})
-        del events
+            rows.append(
+                {
+                    "case": f"DSEC {op} 10M",
+                    "seconds": t,
+                    "Mev_per_s": args.events / t / 1e6,
+                    "reference": f"np.{'save' if op == 'write' else 'load'} {ref:.3f}s",
+                    "ratio_vs_ref": t / ref,
+                    "file_MiB": mb,
+                    "peak_RSS_MiB": "",
+                }
+            )
+        rows.append(
+            {
+                "case": "npy (reference)",
+                "seconds": t_ws + t_rs,
+                "Mev_per_s": "",
+                "reference": "",
+                "ratio_vs_ref": 1.0,
+                "file_MiB": mb_npy,
+                "peak_RSS_MiB": "",
+            }
+        )
 
         # A file larger than the memory budget, written chunk by chunk.
         big = tmp / "big.h5"
@@ -83,23 +99,47 @@ def main() -> None:
         with DsecWriter(big, size) as writer:
             for k in range(0, n_big, per_chunk):
                 span = 2_000_000  # 2 s per chunk: 1 Mev/s
-                writer.append(random_events(min(per_chunk, n_big - k), size, k // per_chunk * span, span, seed=k))
+                writer.append(
+                    random_events(
+                        min(per_chunk, n_big - k), size, k // per_chunk * span, span, seed=k
+                    )
+                )
         t_big = time.perf_counter() - t0
         in_memory_mib = n_big * 13 / 2**20
         n_s, windows, t_s, rss_s = _child(big, "stream")
         n_f, _, t_f, rss_f = _child(big, "full")
         assert n_s == n_f == n_big
-        rows.append({"case": f"stream {n_big // 10**6}M in 20 ms windows", "seconds": t_s,
-                     "Mev_per_s": n_big / t_s / 1e6, "reference": f"read whole {t_f:.2f}s",
-                     "ratio_vs_ref": rss_s / rss_f, "file_MiB": big.stat().st_size / 2**20,
-                     "peak_RSS_MiB": rss_s})
-        rows.append({"case": f"read whole {n_big // 10**6}M (reference)", "seconds": t_f,
-                     "Mev_per_s": n_big / t_f / 1e6, "reference": "", "ratio_vs_ref": 1.0,
-                     "file_MiB": big.stat().st_size / 2**20, "peak_RSS_MiB": rss_f})
-    report("io", rows, ["case", "seconds", "Mev_per_s", "reference", "ratio_vs_ref", "file_MiB",
-                        "peak_RSS_MiB"])
-    print(f"\nstreaming {windows} windows of a file holding {in_memory_mib:.0f} MiB of events "
-          f"(written in {t_big:.1f}s): peak RSS {rss_s:.0f} MiB vs {rss_f:.0f} MiB reading it whole")
+        rows.append(
+            {
+                "case": f"stream {n_big // 10**6}M in 20 ms windows",
+                "seconds": t_s,
+                "Mev_per_s": n_big / t_s / 1e6,
+                "reference": f"read whole {t_f:.2f}s",
+                "ratio_vs_ref": rss_s / rss_f,
+                "file_MiB": big.stat().st_size / 2**20,
+                "peak_RSS_MiB": rss_s,
+            }
+        )
+        rows.append(
+            {
+                "case": f"read whole {n_big // 10**6}M (reference)",
+                "seconds": t_f,
+                "Mev_per_s": n_big / t_f / 1e6,
+                "reference": "",
+                "ratio_vs_ref": 1.0,
+                "file_MiB": big.stat().st_size / 2**20,
+                "peak_RSS_MiB": rss_f,
+            }
+        )
+    report(
+        "io",
+        rows,
+        ["case", "seconds", "Mev_per_s", "reference", "ratio_vs_ref", "file_MiB", "peak_RSS_MiB"],
+    )
+    print(
+        f"\nstreaming {windows} windows of a file holding {in_memory_mib:.0f} MiB of events "
+        f"(written in {t_big:.1f}s): peak RSS {rss_s:.0f} MiB vs {rss_f:.0f} MiB reading it whole"
+    )
 
 
 if __name__ == "__main__":

@@ -19,7 +19,9 @@ from _common import best_of, random_events, report
 from edeflare.voxel import decode, encode
 
 
-def bincount_reference(events: np.ndarray, sensor_size: tuple[int, int], start: int, window: int, bins: int) -> np.ndarray:
+def bincount_reference(
+    events: np.ndarray, sensor_size: tuple[int, int], start: int, window: int, bins: int
+) -> np.ndarray:
     """The straightforward numpy encoder the fast path is measured against."""
     width, height = sensor_size
     b = (events["t"] - start) * bins // window
@@ -44,17 +46,34 @@ def main() -> None:
     rng = np.random.default_rng(1)
     target = 2 * args.events  # about 20 M events to decode
     lam = target / (bins * size[0] * size[1])
-    grid = (rng.poisson(lam, (bins, size[1], size[0])) * rng.choice([-1, 1], (bins, size[1], size[0])))
+    grid = rng.poisson(lam, (bins, size[1], size[0])) * rng.choice(
+        [-1, 1], (bins, size[1], size[0])
+    )
     grid = grid.astype(np.float32)
     n_dec = int(np.abs(grid).sum())
     t_dec = best_of(lambda: decode(grid, 0, window, rng=0))
     rows = [
-        {"operation": "encode (edeflare, numba)", "events": args.events, "seconds": t_ours,
-         "Mev_per_s": args.events / t_ours / 1e6, "vs_reference": t_ref / t_ours},
-        {"operation": "encode (np.bincount reference)", "events": args.events, "seconds": t_ref,
-         "Mev_per_s": args.events / t_ref / 1e6, "vs_reference": 1.0},
-        {"operation": "decode (edeflare)", "events": n_dec, "seconds": t_dec,
-         "Mev_per_s": n_dec / t_dec / 1e6, "vs_reference": ""},
+        {
+            "operation": "encode (edeflare, numba)",
+            "events": args.events,
+            "seconds": t_ours,
+            "Mev_per_s": args.events / t_ours / 1e6,
+            "vs_reference": t_ref / t_ours,
+        },
+        {
+            "operation": "encode (np.bincount reference)",
+            "events": args.events,
+            "seconds": t_ref,
+            "Mev_per_s": args.events / t_ref / 1e6,
+            "vs_reference": 1.0,
+        },
+        {
+            "operation": "decode (edeflare)",
+            "events": n_dec,
+            "seconds": t_dec,
+            "Mev_per_s": n_dec / t_dec / 1e6,
+            "vs_reference": "",
+        },
     ]
     report("voxel", rows, ["operation", "events", "seconds", "Mev_per_s", "vs_reference"])
     print(f"\nencode speed-up over np.bincount: {t_ref / t_ours:.1f}x (target >= 3x)")

@@ -40,7 +40,7 @@ def _crop_spec(text: str) -> tuple[int, int, int, int] | SensorSize:
 
 
 def _ms_to_us(ms: float | None) -> int | None:
-    return None if ms is None else int(round(ms * 1000))
+    return None if ms is None else round(ms * 1000)
 
 
 # -- info ------------------------------------------------------------------------------
@@ -119,7 +119,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
         raise EdeflareError(f"{out}: output must be .png, .jpg, .gif or .mp4")
     src = open_events(args.file, args.sensor_size)
     size = src.sensor_size
-    window = int(round(args.window_ms * 1000))
+    window = round(args.window_ms * 1000)
     if window <= 0:
         raise EdeflareError(f"--window-ms must be positive, got {args.window_ms}")
     start = _ms_to_us(args.start_ms)
@@ -135,8 +135,11 @@ def _cmd_view(args: argparse.Namespace) -> int:
     if not frames:
         raise EdeflareError(f"{args.file}: no events to show")
     if out.suffix.lower() in (".gif", ".mp4"):
-        save_animation(out, [grid([f], captions=[c]) for f, c in zip(frames, labels, strict=True)],
-                       fps=args.fps)
+        save_animation(
+            out,
+            [grid([f], captions=[c]) for f, c in zip(frames, labels, strict=True)],
+            fps=args.fps,
+        )
     else:
         save_image(out, grid(frames, captions=labels, ncols=min(len(frames), 4)))
     print(f"wrote {len(frames)} window(s) of {args.window_ms:g} ms to {out}")
@@ -166,7 +169,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     def add(name: str, help_: str) -> argparse.ArgumentParser:
         return sub.add_parser(
-            name, help=help_, description=help_, formatter_class=argparse.ArgumentDefaultsHelpFormatter
+            name,
+            help=help_,
+            description=help_,
+            formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         )
 
     size_help = "sensor size WxH, for files that record none (else max+1, with a warning)"
@@ -180,20 +186,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", type=Path)
     p.add_argument("output", type=Path)
     p.add_argument("--sensor-size", type=_size, metavar="WxH", help=size_help)
-    p.add_argument("--crop", type=_crop_spec, metavar="WxH|X,Y,W,H",
-                   help="centre crop WxH (e.g. 640x480) or the rectangle X,Y,W,H")
+    p.add_argument(
+        "--crop",
+        type=_crop_spec,
+        metavar="WxH|X,Y,W,H",
+        help="centre crop WxH (e.g. 640x480) or the rectangle X,Y,W,H",
+    )
     p.add_argument("--start-ms", type=float, help="keep events from this absolute time (ms)")
     p.add_argument("--end-ms", type=float, help="keep events before this absolute time (ms)")
-    p.add_argument("--evt-version", default="evt3", choices=["evt3", "evt2", "evt2.1"],
-                   help="encoding of .raw outputs")
+    p.add_argument(
+        "--evt-version",
+        default="evt3",
+        choices=["evt3", "evt2", "evt2.1"],
+        help="encoding of .raw outputs",
+    )
     p.set_defaults(func=_cmd_convert)
 
     p = add("view", "Render windows of events (ON red, OFF blue) to a PNG, GIF or MP4.")
     p.add_argument("file", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True, help=".png, .jpg, .gif or .mp4")
     p.add_argument("--sensor-size", type=_size, metavar="WxH", help=size_help)
-    p.add_argument("--start-ms", type=float,
-                   help="absolute start of the first window (ms); default: aligned to the first event")
+    p.add_argument(
+        "--start-ms",
+        type=float,
+        help="absolute start of the first window (ms); default: aligned to the first event",
+    )
     p.add_argument("--window-ms", type=float, default=20.0, help="window length (ms)")
     p.add_argument("--count", type=int, default=1, help="number of consecutive windows")
     p.add_argument("--background", choices=["white", "black"], default="white")

@@ -132,10 +132,14 @@ def run_demo(out_dir: str | os.PathLike[str] = "demo", *, rng: int = 0) -> dict[
         frames.append(grid(row, labels=["observed (flare)", "voxel round trip", "ground truth"]))
         if len(cells) < 9:
             cells.extend(row)
-    save_image(paths["comparison"], grid(
-        cells, labels=["observed (flare)", "voxel round trip", "ground truth"],
-        row_labels=[f"{k * 20}-{k * 20 + 20} ms" for k in range(3)],
-    ))
+    save_image(
+        paths["comparison"],
+        grid(
+            cells,
+            labels=["observed (flare)", "voxel round trip", "ground truth"],
+            row_labels=[f"{k * 20}-{k * 20 + 20} ms" for k in range(3)],
+        ),
+    )
     save_animation(paths["animation"], frames, fps=5)
     first = slice_time(observed, 0, window)
     save_image(paths["voxels"], voxel_montage(encode(first, size, 0, window), ncols=4))

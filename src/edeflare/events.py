@@ -66,9 +66,7 @@ def check_sensor_size(sensor_size: Any) -> SensorSize:
     try:
         width, height = sensor_size
     except (TypeError, ValueError):
-        raise EventsError(
-            f"sensor_size must be (width, height), got {sensor_size!r}"
-        ) from None
+        raise EventsError(f"sensor_size must be (width, height), got {sensor_size!r}") from None
     ok = all(
         isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 < v <= _U16_MAX + 1
         for v in (width, height)
@@ -119,9 +117,7 @@ def _as_integer_array(name: str, values: Any, lo: int, hi: int) -> np.ndarray:
     if arr.dtype.kind not in "iu":
         raise EventsError(f"{name} must be numeric, got dtype {arr.dtype}")
     if arr.size and (int(arr.min()) < lo or int(arr.max()) > hi):
-        raise EventsError(
-            f"{name} values must lie in [{lo}, {hi}], got [{arr.min()}, {arr.max()}]"
-        )
+        raise EventsError(f"{name} values must lie in [{lo}, {hi}], got [{arr.min()}, {arr.max()}]")
     return arr.astype(np.int64, copy=False)
 
 
@@ -268,20 +264,22 @@ def check_events(events: Any, sensor_size: SensorSize | None = None) -> np.ndarr
     if first_bad >= 0:
         t = events["t"]
         i = int(first_bad)
-        raise EventsError(
-            f"timestamps are not sorted: t={t[i]} at index {i} follows t={t[i - 1]}"
-        )
+        raise EventsError(f"timestamps are not sorted: t={t[i]} at index {i} follows t={t[i - 1]}")
     if max_p > 1:
         i = int(np.flatnonzero(events["p"] > 1)[0])
         raise EventsError(f"polarity must be 0 or 1, got p={events['p'][i]} at index {i}")
     if sensor_size is not None:
         width, height = check_sensor_size(sensor_size)
-        for name, peak, limit, label in (("x", max_x, width, "width"), ("y", max_y, height, "height")):
+        for name, peak, limit, label in (
+            ("x", max_x, width, "width"),
+            ("y", max_y, height, "height"),
+        ):
             if peak >= limit:
                 coord = events[name]
                 i = int(np.flatnonzero(coord >= limit)[0])
                 raise EventsError(
-                    f"{name} out of range for sensor {label} {limit}: {name}={coord[i]} at index {i}"
+                    f"{name} out of range for sensor {label} {limit}: "
+                    f"{name}={coord[i]} at index {i}"
                 )
     return events
 
@@ -439,7 +437,9 @@ def center_crop(
     """
     sensor_w, sensor_h = check_sensor_size(sensor_size)
     width, height = check_sensor_size(size)
-    return crop(events, sensor_size, (sensor_w - width) // 2, (sensor_h - height) // 2, width, height)
+    return crop(
+        events, sensor_size, (sensor_w - width) // 2, (sensor_h - height) // 2, width, height
+    )
 
 
 def stream_sensor_size(streams: Sequence[np.ndarray]) -> SensorSize:

@@ -140,9 +140,13 @@ def grid(
         r, c = divmod(i, ncols)
         x0 = left + pad + c * (cell_w + pad)
         y0 = top + pad + r * (cell_h + pad)
-        canvas.paste(Image.fromarray(np.ascontiguousarray(im[..., :3]).astype(np.uint8)), (x0, y0 + cap))
+        canvas.paste(
+            Image.fromarray(np.ascontiguousarray(im[..., :3]).astype(np.uint8)), (x0, y0 + cap)
+        )
         if captions:
-            draw.text((x0 + cell_w / 2, y0), str(captions[i]), fill=(0, 0, 0), font=font, anchor="mt")
+            draw.text(
+                (x0 + cell_w / 2, y0), str(captions[i]), fill=(0, 0, 0), font=font, anchor="mt"
+            )
     for c, text in enumerate(labels or []):
         x0 = left + pad + c * (cell_w + pad)
         draw.text((x0 + cell_w / 2, pad), str(text), fill=(0, 0, 0), font=font, anchor="mt")
@@ -218,7 +222,9 @@ def _pad_to(image: np.ndarray, multiple: int) -> np.ndarray:
     return np.pad(image, ((0, ph), (0, pw), (0, 0)), constant_values=255)
 
 
-def save_animation(path: str | os.PathLike[str], frames: Sequence[np.ndarray], fps: float = 10.0) -> None:
+def save_animation(
+    path: str | os.PathLike[str], frames: Sequence[np.ndarray], fps: float = 10.0
+) -> None:
     """Write frames as an animated ``.gif`` (looping) or an H.264 ``.mp4``, atomically.
 
     MP4 frames are padded with white to multiples of 16 pixels (the codec's
@@ -242,13 +248,23 @@ def save_animation(path: str | os.PathLike[str], frames: Sequence[np.ndarray], f
         if suffix == ".gif":
             pil = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in frames]
             pil[0].save(
-                tmp, format="GIF", save_all=True, append_images=pil[1:],
-                duration=max(20, int(round(1000 / fps))), loop=0,
+                tmp,
+                format="GIF",
+                save_all=True,
+                append_images=pil[1:],
+                duration=max(20, round(1000 / fps)),
+                loop=0,
             )
         elif suffix == ".mp4":
             writer = imageio.get_writer(
-                tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264",
-                macro_block_size=16, ffmpeg_log_level="error", pixelformat="yuv420p",
+                tmp,
+                format="FFMPEG",
+                mode="I",
+                fps=fps,
+                codec="libx264",
+                macro_block_size=16,
+                ffmpeg_log_level="error",
+                pixelformat="yuv420p",
             )
             try:
                 for f in frames:

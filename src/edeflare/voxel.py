@@ -30,7 +30,9 @@ __all__ = ["decode", "encode", "encode_polarity"]
 _COUNTING_SORT_MAX_US = 1 << 24
 
 
-def _checked(events: Any, sensor_size: SensorSize, window_start_us: int, window_us: int, bins: int) -> tuple[int, int]:
+def _checked(
+    events: Any, sensor_size: SensorSize, window_start_us: int, window_us: int, bins: int
+) -> tuple[int, int]:
     check_events(events, sensor_size)
     width, height = check_sensor_size(sensor_size)
     if not isinstance(bins, (int, np.integer)) or bins < 1:
@@ -167,7 +169,9 @@ def encode_polarity(
 
 
 @numba.njit(cache=True, nogil=True)
-def _decode_into(cells, counts, bins, height, width, start, window, u, t, x, y, p):  # pragma: no cover
+def _decode_into(
+    cells, counts, bins, height, width, start, window, u, t, x, y, p
+):  # pragma: no cover
     """Draw each cell's events and place them in time order by a counting sort.
 
     Pass 1 draws every event's integer offset in its bin and histograms the
@@ -262,17 +266,36 @@ def decode(
     u = rng.random(total)
     events = np.empty(total, dtype=EVENT_DTYPE)
     if window_us <= _COUNTING_SORT_MAX_US:
-        _decode_into(cells, cell_counts, bins, height, width, np.int64(window_start_us),
-                     np.int64(window_us), u, events["t"], events["x"], events["y"], events["p"])
+        _decode_into(
+            cells,
+            cell_counts,
+            bins,
+            height,
+            width,
+            np.int64(window_start_us),
+            np.int64(window_us),
+            u,
+            events["t"],
+            events["x"],
+            events["y"],
+            events["p"],
+        )
     else:  # very long windows: a histogram per microsecond would be too large
-        events = _decode_by_argsort(cells, cell_counts, bins, height, width,
-                                    int(window_start_us), window_us, u)
+        events = _decode_by_argsort(
+            cells, cell_counts, bins, height, width, int(window_start_us), window_us, u
+        )
     return events
 
 
 def _decode_by_argsort(
-    cells: np.ndarray, counts: np.ndarray, bins: int, height: int, width: int,
-    start: int, window: int, u: np.ndarray,
+    cells: np.ndarray,
+    counts: np.ndarray,
+    bins: int,
+    height: int,
+    width: int,
+    start: int,
+    window: int,
+    u: np.ndarray,
 ) -> np.ndarray:
     """Vectorised decode with a stable argsort, for windows too long for a counting sort."""
     reps = np.abs(counts)

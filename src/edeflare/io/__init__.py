@@ -66,7 +66,9 @@ class _Format:
     writer: Callable[..., None]
 
 
-def _write_dsec(tmp: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path) -> None:
+def _write_dsec(
+    tmp: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path
+) -> None:
     with DsecWriter(tmp, sensor_size, atomic=False) as writer:
         for events in chunks:
             writer.append(events)

@@ -52,12 +52,15 @@ def _parse_header(path: Path) -> tuple[dict[str, str], int, int]:
     event_type, event_size = type_size[0], type_size[1]
     if event_type not in (0x00, 0x0C) or event_size != 8:
         raise EventFileError(
-            path, f"unsupported DAT event type {event_type:#04x} / size {event_size} (want TD, 8 bytes)"
+            path,
+            f"unsupported DAT event type {event_type:#04x} / size {event_size} (want TD, 8 bytes)",
         )
     return fields, event_type, offset
 
 
-def open_dat(path: Path, sensor_size: SensorSize | None = None) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
+def open_dat(
+    path: Path, sensor_size: SensorSize | None = None
+) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
     """Open a DAT file: ``(recorded sensor size or None, chunk iterator)``."""
     fields, _, offset = _parse_header(path)
     recorded: SensorSize | None = None
@@ -110,7 +113,9 @@ def open_dat(path: Path, sensor_size: SensorSize | None = None) -> tuple[SensorS
     return recorded, chunks()
 
 
-def write_dat(tmp_path: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path) -> None:
+def write_dat(
+    tmp_path: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path
+) -> None:
     """Write a version-2 CD DAT file with ``% Width``, ``% Height`` and ``% t0`` header lines."""
     width, height = sensor_size
     if width > 1 << 14 or height > 1 << 14:

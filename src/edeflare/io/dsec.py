@@ -151,7 +151,9 @@ class DsecReader:
                 ) from None
         if self._ms_to_idx is not None and self.n_events:
             idx = self._ms_to_idx
-            if idx.size and (idx.min() < 0 or idx.max() > self.n_events or (np.diff(idx) < 0).any()):
+            if idx.size and (
+                idx.min() < 0 or idx.max() > self.n_events or (np.diff(idx) < 0).any()
+            ):
                 raise EventFileError(self.path, "ms_to_idx is not a valid index into the events")
 
     # -- context manager ------------------------------------------------------------
@@ -235,7 +237,9 @@ class DsecReader:
             yield self.read(start, start + chunk_events)
 
 
-def read_dsec(path: str | os.PathLike[str], group: str | None = None) -> tuple[np.ndarray, SensorSize | None]:
+def read_dsec(
+    path: str | os.PathLike[str], group: str | None = None
+) -> tuple[np.ndarray, SensorSize | None]:
     """Read a whole DSEC file: ``(events, recorded sensor size or None)``."""
     with DsecReader(path, group) as reader:
         return reader.read(), reader.recorded_sensor_size
@@ -320,7 +324,8 @@ class DsecWriter:
         if self._last_t is not None and int(t[0]) < self._last_t:
             self._abort()
             raise EventFileError(
-                self.path, f"chunk starts at t={int(t[0])} before the previous chunk's end {self._last_t}"
+                self.path,
+                f"chunk starts at t={int(t[0])} before the previous chunk's end {self._last_t}",
             )
         if self.t_offset is None:
             self.t_offset = int(t[0])
@@ -387,4 +392,3 @@ def write_dsec(
     """Write a whole stream to a DSEC file (atomically). See :class:`DsecWriter`."""
     with DsecWriter(path, sensor_size, t_offset_us) as writer:
         writer.append(events)
-

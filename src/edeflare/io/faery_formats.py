@@ -112,7 +112,9 @@ def _to_faery(events: np.ndarray) -> np.ndarray:
     return out
 
 
-def open_faery(path: Path, sensor_size: SensorSize | None) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
+def open_faery(
+    path: Path, sensor_size: SensorSize | None
+) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
     """Open a faery-readable file: ``(recorded sensor size or None, chunk iterator)``.
 
     ``sensor_size`` overrides what the file records (needed for ``.raw``
@@ -126,7 +128,9 @@ def open_faery(path: Path, sensor_size: SensorSize | None) -> tuple[SensorSize |
         if not header.lines:
             raise EventFileError(path, "no Prophesee '%' header: not an EVT .raw file")
         if header.version is None:
-            raise EventFileError(path, "header names no EVT version ('% evt 2.0|3.0' or '% format')")
+            raise EventFileError(
+                path, "header names no EVT version ('% evt 2.0|3.0' or '% format')"
+            )
         recorded = header.sensor_size
         kwargs["version_fallback"] = header.version
         # Decoding needs some size; with none known, accept any coordinate and infer later.

@@ -33,7 +33,9 @@ __all__ = ["open_npz", "open_text", "write_npz", "write_txt"]
 _TEXT_CHUNK_LINES = 1 << 20
 
 
-def open_npz(path: Path, sensor_size: SensorSize | None = None) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
+def open_npz(
+    path: Path, sensor_size: SensorSize | None = None
+) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
     """Open an ``.npz`` archive: ``(recorded sensor size or None, one-chunk iterator)``."""
 
     def load(names: tuple[str, ...]) -> dict[str, np.ndarray]:
@@ -65,7 +67,9 @@ def open_npz(path: Path, sensor_size: SensorSize | None = None) -> tuple[SensorS
     return recorded, chunks()
 
 
-def write_npz(tmp_path: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path) -> None:
+def write_npz(
+    tmp_path: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path
+) -> None:
     """Write ``t, x, y, p, width, height`` to a compressed ``.npz``."""
     parts = [c for c in chunks if c.size]
     events = np.concatenate(parts) if parts else np.zeros(0, EVENT_DTYPE)
@@ -111,7 +115,9 @@ def _is_number(token: str) -> bool:
     return True
 
 
-def open_text(path: Path, sensor_size: SensorSize | None = None) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
+def open_text(
+    path: Path, sensor_size: SensorSize | None = None
+) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
     """Open a ``.txt`` or ``.csv`` file: ``(recorded sensor size or None, chunk iterator)``."""
     is_csv = path.suffix.lower() == ".csv"
     delimiter = "," if is_csv else None
@@ -132,7 +138,9 @@ def open_text(path: Path, sensor_size: SensorSize | None = None) -> tuple[Sensor
             recorded = (int(float(tokens[0])), int(float(tokens[1])))
             skip = 1
         data_line = first if skip == 0 else f.readline()
-        seconds = "." in data_line.replace(",", " ").split()[order[0]] if data_line.strip() else False
+        seconds = (
+            "." in data_line.replace(",", " ").split()[order[0]] if data_line.strip() else False
+        )
 
     def chunks() -> Iterator[np.ndarray]:
         with open(path, encoding="utf-8", errors="replace") as f:
@@ -149,14 +157,18 @@ def open_text(path: Path, sensor_size: SensorSize | None = None) -> tuple[Sensor
                         io.StringIO(block), delimiter=delimiter, dtype=np.float64, ndmin=2
                     )
                 except ValueError as exc:
-                    raise EventFileError(path, f"malformed line near line {line_no}: {exc}") from None
+                    raise EventFileError(
+                        path, f"malformed line near line {line_no}: {exc}"
+                    ) from None
                 if table.shape[1] < 4:
                     raise EventFileError(path, f"need 4 columns t x y p, found {table.shape[1]}")
                 t = table[:, order[0]]
                 if seconds:
                     t = np.round(t * 1e6)
                 try:
-                    events = make_events(t, table[:, order[1]], table[:, order[2]], table[:, order[3]])
+                    events = make_events(
+                        t, table[:, order[1]], table[:, order[2]], table[:, order[3]]
+                    )
                 except EventsError as exc:
                     raise EventFileError(path, f"{exc} (lines from {line_no})") from None
                 if last_t is not None and events.size and events["t"][0] < last_t:
@@ -180,7 +192,9 @@ def _read_block(f: io.TextIOBase) -> str:
     return "".join(lines)
 
 
-def write_txt(tmp_path: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path) -> None:
+def write_txt(
+    tmp_path: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path
+) -> None:
     """Write ``W H`` then one ``t x y p`` line per event."""
     with open(tmp_path, "w", encoding="utf-8") as f:
         f.write(f"{sensor_size[0]} {sensor_size[1]}\n")

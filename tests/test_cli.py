@@ -1,0 +1,152 @@
+"""The ``edeflare`` command: real outputs, one-line errors, non-zero exits, nothing half-written."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import random_events, same_events
+from PIL import Image
+
+from edeflare.cli import main
+from edeflare.events import make_events
+from edeflare.io import read_events, write_events
+
+
+@pytest.fixture
+def small_h5(tmp_path, rng):
+    events = random_events(rng, 5000, (64, 48), t0=1_000_000, span_us=100_000)
+    path = tmp_path / "in.h5"
+    write_events(path, events, (64, 48))
+    return path, events
+
+
+def test_info_reports_exact_figures(tmp_path, capsys):
+    ev = make_events([1000, 2000, 3000, 11_000], [0, 1, 2, 3], [0, 0, 0, 0], [1, 1, 1, 0])
+    path = tmp_path / "a.npz"
+    write_events(path, ev, (4, 1))
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "numpy npz" in out
+    assert "4x1 (file)" in out
+    assert "events      4" in out
+    assert "span        10.000 ms" in out
+    assert "rate        0.000 Mev/s" in out  # 4 events / 10 ms = 400 ev/s
+    assert "ON fraction 0.7500" in out
+
+
+def test_info_sensor_size_option_and_inference_warning(tmp_path, capsys):
+    path = tmp_path / "a.txt"
+    path.write_text("0 3 1 1\n5 7 2 0\n")
+    with pytest.warns(UserWarning, match="no sensor size recorded; using 8x3"):
+        assert main(["info", str(path)]) == 0
+    assert "8x3 (inferred)" in capsys.readouterr().out
+    assert main(["info", str(path), "--sensor-size", "640x480"]) == 0
+    assert "640x480 (option)" in capsys.readouterr().out
+
+
+def test_convert_round_trip_and_centre_crop(small_h5, tmp_path, capsys):
+    path, events = small_h5
+    out = tmp_path / "out.raw"
+    assert main(["convert", str(path), str(out)]) == 0
+    back, size = read_events(out)
+    assert size == (64, 48) and same_events(back, events)
+    cropped = tmp_path / "crop.npz"
+    assert main(["convert", str(path), str(cropped), "--crop", "32x24"]) == 0
+    got, size = read_events(cropped)
+    keep = (events["x"] >= 16) & (events["x"] < 48) & (events["y"] >= 12) & (events["y"] < 36)
+    assert size == (32, 24)
+    assert np.array_equal(got["x"], events["x"][keep] - 16)
+    assert np.array_equal(got["y"], events["y"][keep] - 12)
+    assert np.array_equal(got["t"], events["t"][keep])
+    assert f"wrote {keep.sum():,} events (32x24)" in capsys.readouterr().out
+
+
+def test_convert_rectangle_crop_and_time_range(small_h5, tmp_path):
+    path, events = small_h5
+    out = tmp_path / "out.h5"
+    argv = ["convert", str(path), str(out), "--crop", "10,5,20,10", "--start-ms", "1020",
+            "--end-ms", "1050"]
+    assert main(argv) == 0
+    got, size = read_events(out)
+    t = events["t"]
+    keep = ((t >= 1_020_000) & (t < 1_050_000) & (events["x"] >= 10) & (events["x"] < 30)
+            & (events["y"] >= 5) & (events["y"] < 15))
+    assert size == (20, 10)
+    assert np.array_equal(got["t"], t[keep])
+    assert np.array_equal(got["x"], events["x"][keep] - 10)
+
+
+def test_view_png_gif_mp4(small_h5, tmp_path, capsys):
+    path, _ = small_h5
+    png = tmp_path / "v.png"
+    assert main(["view", str(path), "-o", str(png), "--count", "3", "--window-ms", "10"]) == 0
+    assert "wrote 3 window(s) of 10 ms" in capsys.readouterr().out
+    with Image.open(png) as im:
+        assert im.size[0] >= 3 * 64  # three frames side by side
+    gif = tmp_path / "v.gif"
+    assert main(["view", str(path), "-o", str(gif), "--count", "4"]) == 0
+    with Image.open(gif) as im:
+        assert im.n_frames == 4
+    mp4 = tmp_path / "v.mp4"
+    assert main(["view", str(path), "-o", str(mp4), "--count", "2"]) == 0
+    assert mp4.stat().st_size > 0
+
+
+def test_demo_writes_everything(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["observed_events"] > summary["clean_events"] > 0
+    for name in ("observed.h5", "clean.h5", "comparison.png", "comparison.gif", "voxels.png"):
+        assert (out / name).stat().st_size > 0
+    observed, size = read_events(out / "observed.h5")
+    assert size == (346, 260) and observed.size == summary["observed_events"]
+    assert str(out) in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["info", "missing.h5"], "missing.h5: no such file"),
+        (["info", "x.unknown"], "unknown event file suffix '.unknown'"),
+        (["view", "in.h5", "-o", "out.bmp"], "output must be .png"),
+    ],
+)
+def test_user_errors_print_one_line_and_exit_1(tmp_path, monkeypatch, capsys, argv, message):
+    monkeypatch.chdir(tmp_path)
+    write_events(tmp_path / "in.h5", make_events([0], [0], [0], [1]), (2, 2))
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("edeflare: error: ") and message in err
+    assert err.count("\n") == 1
+
+
+def test_convert_error_leaves_no_output(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,x,y,p\n10,1,1,1\n5,1,1,0\n")  # unsorted
+    out = tmp_path / "out.h5"
+    assert main(["convert", str(bad), str(out), "--sensor-size", "4x4"]) == 1
+    assert "not sorted" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv"]
+
+
+def test_bad_option_values_exit_2(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["info", "a.h5", "--sensor-size", "640by480"])
+    assert exc.value.code == 2
+    assert "640x480" in capsys.readouterr().err
+
+
+def test_console_script_runs_without_traceback(tmp_path):
+    exe = shutil.which("edeflare") or str(
+        __import__("pathlib").Path(sys.executable).with_name("edeflare")
+    )
+    done = subprocess.run([exe, "info", str(tmp_path / "nope.raw")], capture_output=True, text=True)
+    assert done.returncode == 1
+    assert "Traceback" not in done.stderr
+    assert done.stderr.strip().endswith("nope.raw: no such file")
