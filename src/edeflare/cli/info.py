@@ -1,0 +1,51 @@
+"""``edeflare info FILE``: format, sensor size, events, span, rate, ON fraction."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tqdm import tqdm
+
+from ._common import SIZE_HELP, sensor_size_arg
+
+HELP = "Describe an event file: format, sensor, events, span, rate, ON fraction."
+
+
+def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
+    """Register the command."""
+    p = sub.add_parser("info", help=HELP, description=HELP, **kwargs)
+    p.add_argument("file", type=Path)
+    p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help=SIZE_HELP)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Stream the file once and print its figures."""
+    from ..io import open_events
+
+    src = open_events(args.file, args.sensor_size)
+    n = n_on = 0
+    first = last = None
+    with tqdm(total=src.n_events, unit="ev", unit_scale=True, disable=None, leave=False) as bar:
+        for chunk in src.chunks():
+            n += chunk.size
+            n_on += int(chunk["p"].sum())
+            if first is None:
+                first = int(chunk["t"][0])
+            last = int(chunk["t"][-1])
+            bar.update(chunk.size)
+    width, height = src.sensor_size
+    print(f"file        {src.path}")
+    print(f"format      {src.format}")
+    print(f"sensor      {width}x{height} ({src.sensor_size_source})")
+    print(f"events      {n:,}")
+    if n:
+        span = last - first  # type: ignore[operator]
+        print(f"first t     {first} µs")
+        print(f"last t      {last} µs")
+        print(f"span        {span / 1000:.3f} ms")
+        rate = n / (span / 1e6) if span else float("inf")
+        print(f"rate        {rate / 1e6:.3f} Mev/s")
+        print(f"ON fraction {n_on / n:.4f}")
+    return 0
