@@ -9,9 +9,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import random_events, same_events
 from PIL import Image
 
+from conftest import random_events, same_events
 from edeflare.cli import main
 from edeflare.events import make_events
 from edeflare.io import read_events, write_events
@@ -69,13 +69,28 @@ def test_convert_round_trip_and_centre_crop(small_h5, tmp_path, capsys):
 def test_convert_rectangle_crop_and_time_range(small_h5, tmp_path):
     path, events = small_h5
     out = tmp_path / "out.h5"
-    argv = ["convert", str(path), str(out), "--crop", "10,5,20,10", "--start-ms", "1020",
-            "--end-ms", "1050"]
+    argv = [
+        "convert",
+        str(path),
+        str(out),
+        "--crop",
+        "10,5,20,10",
+        "--start-ms",
+        "1020",
+        "--end-ms",
+        "1050",
+    ]
     assert main(argv) == 0
     got, size = read_events(out)
     t = events["t"]
-    keep = ((t >= 1_020_000) & (t < 1_050_000) & (events["x"] >= 10) & (events["x"] < 30)
-            & (events["y"] >= 5) & (events["y"] < 15))
+    keep = (
+        (t >= 1_020_000)
+        & (t < 1_050_000)
+        & (events["x"] >= 10)
+        & (events["x"] < 30)
+        & (events["y"] >= 5)
+        & (events["y"] < 15)
+    )
     assert size == (20, 10)
     assert np.array_equal(got["t"], t[keep])
     assert np.array_equal(got["x"], events["x"][keep] - 10)

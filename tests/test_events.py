@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_events, same_events
 
+from conftest import random_events, same_events
 from edeflare.errors import EdeflareError, EventsError
 from edeflare.events import (
     EVENT_DTYPE,
@@ -65,7 +65,7 @@ def test_make_events_fills_every_field():
         [-1.0, 1.0, 1.0, -1.0],
         [0.0, 1.0, 1.0, 0.0],
     ],
-    ids=["0/1", "u8 0/1", "bool list", "bool array", "-1/+1", "i8 -1/+1", "float -1/+1", "float 0/1"],
+    ids=["0/1", "u8", "bools", "bool array", "-1/+1", "i8 -1/+1", "float -1/+1", "float 0/1"],
 )
 def test_make_events_polarity_conventions_map_to_0_1(p):
     ev = make_events([0, 1, 2, 3], [0, 1, 2, 3], [0, 0, 0, 0], p)
@@ -241,6 +241,31 @@ def test_check_events_rejects_polarity_two_naming_the_index():
     ev["p"][2] = 2
     with pytest.raises(EventsError, match="p=2 at index 2"):
         check_events(ev)
+
+
+@pytest.mark.parametrize("bad_index", [1, 99, 100, 101, 799, 800, 1599])
+def test_check_events_names_the_first_problem_in_long_streams(rng, bad_index):
+    # 1600 events: the first decreasing t / off-sensor x / bad p can sit anywhere,
+    # including on either side of any internal block boundary of the scan.
+    ev = random_events(rng, 1600, (64, 32), span_us=10**6)
+    ev["t"] = np.arange(1600) * 10
+    unsorted = ev.copy()
+    unsorted["t"][bad_index] = unsorted["t"][bad_index - 1] - 1
+    if bad_index < 1599:
+        unsorted["t"][1599] = 0  # a later decrease must not be the one reported
+    with pytest.raises(EventsError, match=rf"at index {bad_index} follows"):
+        check_events(unsorted)
+    off = ev.copy()
+    off["x"][bad_index] = 64
+    if bad_index < 1599:
+        off["x"][1599] = 65
+    with pytest.raises(EventsError, match=rf"x=64 at index {bad_index}$"):
+        check_events(off, (64, 32))
+    check_events(off, (66, 32))  # all on a wider sensor
+    pol = ev.copy()
+    pol["p"][bad_index] = 7
+    with pytest.raises(EventsError, match=rf"p=7 at index {bad_index}$"):
+        check_events(pol)
 
 
 def test_check_events_empty_stream_still_checks_the_sensor_size():
@@ -475,7 +500,7 @@ def test_parse_sensor_size_accepts(text, expected):
     "text", ["640", "640x480x3", "axb", "640.5x480", "0x480", "-640x480", "65537x1", ""]
 )
 def test_parse_sensor_size_rejects(text):
-    with pytest.raises(EventsError, match="640x480|sensor_size"):
+    with pytest.raises(EventsError, match=r"640x480|sensor_size"):
         parse_sensor_size(text)
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_events, same_events
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import random_events, same_events
 from edeflare.errors import EventsError
 from edeflare.events import EVENT_DTYPE, iter_time_windows, make_events
 from edeflare.voxel import decode, encode, encode_polarity

@@ -161,7 +161,9 @@ def _paired_windows(
 ) -> tuple[SensorSize, Iterator[tuple[int, np.ndarray, np.ndarray]]]:
     src_gt = open_events(gt_path, sensor_size)
     size = src_gt.sensor_size
-    src_pred = open_events(pred_path, sensor_size or size)
+    src_pred = open_events(pred_path, sensor_size)
+    if sensor_size is None and src_pred.recorded_sensor_size is None:
+        src_pred = open_events(pred_path, size)  # nothing recorded: take the ground truth's
     if src_pred.sensor_size != size:
         raise EventFileError(
             pred_path,

@@ -29,12 +29,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import EventsError
 from .events import SensorSize, check_events, check_sensor_size
-from .voxel import encode, encode_polarity
+from .voxel import encode_polarity
 
 __all__ = [
     "HIGHER_IS_BETTER",
@@ -334,6 +335,69 @@ def f1_scores(
     return raw, temporal, tp
 
 
+@numba.njit(cache=True, nogil=True)
+def _voxel_scores(pg, pp, threshold):  # pragma: no cover - compiled
+    """All six voxel metrics of polarity grids ``(2, B, H, W)`` in one pass.
+
+    Returns ``(mse, pmse_2, pmse_4, r_f1, t_f1, tp_f1)``; equal to
+    :func:`mse` (on ``grid[0] - grid[1]``), :func:`pmse` and :func:`f1_scores`,
+    which stay as the readable reference (a test checks the two agree). Fused
+    because the numpy version makes ~30 passes over 4.9 M-cell grids.
+    """
+    _, bins, height, width = pg.shape
+    h2, w2, h4, w4 = height // 2, width // 2, height // 4, width // 4
+    d2 = np.zeros((2, bins, h2, w2))
+    d4 = np.zeros((2, bins, h4, w4))
+    tg = np.zeros((2, height, width))
+    tq = np.zeros((2, height, width))
+    squared = 0.0
+    tp = n_g = n_q = 0
+    for b in range(bins):
+        for y in range(height):
+            for x in range(width):
+                diff = (np.float64(pp[0, b, y, x]) - pp[1, b, y, x]) - (
+                    np.float64(pg[0, b, y, x]) - pg[1, b, y, x]
+                )
+                squared += diff * diff
+                for c in range(2):
+                    g = np.float64(pg[c, b, y, x])
+                    q = np.float64(pp[c, b, y, x])
+                    if g == 0.0 and q == 0.0:
+                        continue
+                    a_g = g > threshold
+                    a_q = q > threshold
+                    tp += a_g and a_q
+                    n_g += a_g
+                    n_q += a_q
+                    tg[c, y, x] += g
+                    tq[c, y, x] += q
+                    if y < 2 * h2 and x < 2 * w2:
+                        d2[c, b, y >> 1, x >> 1] += q - g
+                    if y < 4 * h4 and x < 4 * w4:
+                        d4[c, b, y >> 2, x >> 2] += q - g
+    mse_value = squared / (bins * height * width)
+    pmse_2 = np.nan if d2.size == 0 else np.mean((d2 / 4.0) ** 2)
+    pmse_4 = np.nan if d4.size == 0 else np.mean((d4 / 16.0) ** 2)
+    r_f1 = 1.0 if n_g + n_q == 0 else 2.0 * tp / (n_g + n_q)
+    tp_t = n_gt = n_qt = tp_tp = n_gtp = n_qtp = 0
+    for y in range(height):
+        for x in range(width):
+            for c in range(2):
+                a_g = tg[c, y, x] > threshold
+                a_q = tq[c, y, x] > threshold
+                tp_t += a_g and a_q
+                n_gt += a_g
+                n_qt += a_q
+            a_g = tg[0, y, x] + tg[1, y, x] > threshold
+            a_q = tq[0, y, x] + tq[1, y, x] > threshold
+            tp_tp += a_g and a_q
+            n_gtp += a_g
+            n_qtp += a_q
+    t_f1 = 1.0 if n_gt + n_qt == 0 else 2.0 * tp_t / (n_gt + n_qt)
+    tp_f1 = 1.0 if n_gtp + n_qtp == 0 else 2.0 * tp_tp / (n_gtp + n_qtp)
+    return mse_value, pmse_2, pmse_4, r_f1, t_f1, tp_f1
+
+
 @dataclass(frozen=True)
 class SegmentMetrics:
     """The eight metrics of one segment (NaN where undefined) and its event counts."""
@@ -382,20 +446,18 @@ def segment_metrics(
     chamfer, gauss = event_distances(
         events_gt, events_pred, sensor_size, window_start_us, window_us, workers=workers
     )
-    v_gt = encode(events_gt, sensor_size, window_start_us, window_us, bins)
-    v_pred = encode(events_pred, sensor_size, window_start_us, window_us, bins)
     pol_gt = encode_polarity(events_gt, sensor_size, window_start_us, window_us, bins)
     pol_pred = encode_polarity(events_pred, sensor_size, window_start_us, window_us, bins)
-    r_f1, t_f1, tp_f1 = f1_scores(pol_gt, pol_pred)
+    mse_v, pmse_2, pmse_4, r_f1, t_f1, tp_f1 = _voxel_scores(pol_gt, pol_pred, THRESHOLD)
     return SegmentMetrics(
         chamfer=chamfer,
         gaussian=gauss,
-        mse=mse(v_gt, v_pred),
-        pmse_2=pmse(pol_gt, pol_pred, 2),
-        pmse_4=pmse(pol_gt, pol_pred, 4),
-        r_f1=r_f1,
-        t_f1=t_f1,
-        tp_f1=tp_f1,
+        mse=float(mse_v),
+        pmse_2=float(pmse_2),
+        pmse_4=float(pmse_4),
+        r_f1=float(r_f1),
+        t_f1=float(t_f1),
+        tp_f1=float(tp_f1),
         n_gt=int(events_gt.size),
         n_pred=int(events_pred.size),
     )

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import itertools
+
 import h5py
 import numpy as np
 import pytest
-from conftest import random_events, same_events
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import random_events, same_events
 from edeflare.errors import EventFileError
 from edeflare.events import EVENT_DTYPE, empty_events, make_events
 from edeflare.io import iter_windows, read_events, write_events
@@ -57,7 +59,8 @@ def test_layout_dtypes_offset_and_compression(tmp_path):
     assert files_in(tmp_path) == ["rec.h5"]
     with h5py.File(path, "r") as f:
         g = f["events"]
-        assert {k: g[k].dtype.str for k in "xypt"} == {"x": "<u2", "y": "<u2", "p": "|u1", "t": "<u4"}
+        dtypes = {k: g[k].dtype.str for k in "xypt"}
+        assert dtypes == {"x": "<u2", "y": "<u2", "p": "|u1", "t": "<u4"}
         assert f["ms_to_idx"].dtype.str == "<u8"
         assert f["t_offset"].dtype.str == "<i8" and f["t_offset"].shape == ()
         assert int(f["t_offset"][()]) == T_ABS  # default: the first event's time
@@ -207,7 +210,7 @@ def test_chunked_writer_equals_single_write(tmp_path, rng):
     write_dsec(tmp_path / "one.h5", ev, (32, 24))
     cuts = [0, 0, 1, 1505, 1505, 2999, 3005, ev.size]
     with DsecWriter(tmp_path / "many.h5", (32, 24)) as w:
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        for a, b in itertools.pairwise(cuts):
             w.append(ev[a:b])
         assert w.n_events == ev.size
     with h5py.File(tmp_path / "one.h5", "r") as f1, h5py.File(tmp_path / "many.h5", "r") as f2:
@@ -249,11 +252,21 @@ def test_writer_exception_in_with_block_leaves_old_file(tmp_path):
 
 
 def test_writer_rejects_events_off_the_sensor(tmp_path):
-    with pytest.raises(EventFileError, match="x out of range"), DsecWriter(
-        tmp_path / "off.h5", (4, 4)
-    ) as w:
+    with (
+        pytest.raises(EventFileError, match="x out of range"),
+        DsecWriter(tmp_path / "off.h5", (4, 4)) as w,
+    ):
         w.append(make_events([0], [4], [0], [1]))
     assert files_in(tmp_path) == []
+
+
+def test_writer_into_an_impossible_folder_raises_a_project_error(tmp_path):
+    blocker = tmp_path / "plain_file"
+    blocker.write_bytes(b"data")
+    with pytest.raises(EventFileError) as info:
+        write_dsec(blocker / "rec.h5", make_events([0], [0], [0], [1]), (1, 1))
+    assert str(blocker / "rec.h5") in str(info.value)
+    assert files_in(tmp_path) == ["plain_file"]
 
 
 # -- reading other writers' files ---------------------------------------------------------
@@ -282,8 +295,10 @@ def test_reads_events_left_group(tmp_path, rng):
         assert r.t_offset == T_ABS
         assert r.recorded_sensor_size is None
         assert same_events(r.read(), ev)
-        assert same_events(r.read_time(T_ABS + 100_000, T_ABS + 200_000),
-                           ev[(ev["t"] >= T_ABS + 100_000) & (ev["t"] < T_ABS + 200_000)])
+        assert same_events(
+            r.read_time(T_ABS + 100_000, T_ABS + 200_000),
+            ev[(ev["t"] >= T_ABS + 100_000) & (ev["t"] < T_ABS + 200_000)],
+        )
     events, size = read_events(path, sensor_size=(640, 480))
     assert same_events(events, ev) and size == (640, 480)
 
@@ -358,7 +373,7 @@ def test_read_time_and_index_of_match_searchsorted(tmp_path, rng, with_ms_to_idx
             assert r.index_of(int(q)) == int(np.searchsorted(t, q, side="left")), q
         for a, b in rng.integers(T_ABS - 1_000, T_ABS + 3_010_000, (100, 2)):
             lo, hi = np.searchsorted(t, [a, b], side="left")
-            assert same_events(r.read_time(int(a), int(b)), ev[lo:max(lo, hi)])
+            assert same_events(r.read_time(int(a), int(b)), ev[lo : max(lo, hi)])
         chunks = list(r.iter_chunks(777))
         assert [c.size for c in chunks[:-1]] == [777] * (len(chunks) - 1)
         assert same_events(np.concatenate(chunks), ev)
@@ -373,8 +388,16 @@ def test_index_of_bisects_blocks_larger_than_65536_events(tmp_path, rng):
         path = tmp_path / f"dense{with_idx}.h5"
         _write_dsec_by_hand(path, ev, "events", T_ABS, with_ms_to_idx=with_idx)
         with DsecReader(path) as r:
-            for q in [T_ABS, T_ABS + 1, T_ABS + 999, T_ABS + 1000, T_ABS + 1500, T_ABS + 2999,
-                      T_ABS + 3000, int(t[77_777])]:
+            for q in [
+                T_ABS,
+                T_ABS + 1,
+                T_ABS + 999,
+                T_ABS + 1000,
+                T_ABS + 1500,
+                T_ABS + 2999,
+                T_ABS + 3000,
+                int(t[77_777]),
+            ]:
                 assert r.index_of(q) == int(np.searchsorted(t, q, side="left"))
 
 

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import stat
+
 import numpy as np
 import pytest
-from conftest import random_events, same_events
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import edeflare.io.dat as dat_module
 import edeflare.io.text as text_module
+from conftest import random_events, same_events
+from edeflare.errors import EventFileError
 from edeflare.events import EVENT_DTYPE, empty_events, iter_time_windows, make_events
 from edeflare.io import (
     EventSource,
@@ -64,7 +68,17 @@ def hand_events():
 
 
 def test_list_formats_and_names():
-    assert list_formats() == [".h5", ".hdf5", ".raw", ".dat", ".aedat4", ".es", ".csv", ".npz", ".txt"]
+    assert list_formats() == [
+        ".h5",
+        ".hdf5",
+        ".raw",
+        ".dat",
+        ".aedat4",
+        ".es",
+        ".csv",
+        ".npz",
+        ".txt",
+    ]
     assert format_of("a.H5") == "DSEC HDF5"
     assert format_of("drive.raw") == "Prophesee EVT"
     assert format_of("x/y/rec.aedat4") == "AEDAT 4"
@@ -105,7 +119,8 @@ def test_round_trip_random_absolute_times(tmp_path, rng, suffix, evt):
 @pytest.mark.parametrize(("suffix", "evt"), WRITABLE, ids=WRITABLE_IDS)
 def test_round_trip_empty_stream_keeps_sensor_size(tmp_path, suffix, evt):
     path = tmp_path / f"empty{suffix}"
-    assert write_event_chunks(path, [empty_events(), empty_events()], (320, 240), evt_version=evt) == 0
+    chunks = [empty_events(), empty_events()]
+    assert write_event_chunks(path, chunks, (320, 240), evt_version=evt) == 0
     events, size = read_events(path)
     assert events.dtype == EVENT_DTYPE and events.size == 0
     assert size == (320, 240)
@@ -118,8 +133,9 @@ def test_write_event_chunks_equals_one_write(tmp_path, rng, suffix, evt):
     n = write_event_chunks(tmp_path / f"c{suffix}", chunks, (64, 48), evt_version=evt)
     assert n == ev.size
     write_events(tmp_path / f"w{suffix}", ev, (64, 48), evt_version=evt)
-    assert same_events(read_events(tmp_path / f"c{suffix}").events,
-                       read_events(tmp_path / f"w{suffix}").events)
+    assert same_events(
+        read_events(tmp_path / f"c{suffix}").events, read_events(tmp_path / f"w{suffix}").events
+    )
 
 
 def test_raw_header_records_version_and_geometry(tmp_path):
@@ -140,25 +156,39 @@ def test_overwrites_an_existing_file(tmp_path):
     assert files_in(tmp_path) == ["again.npz"]
 
 
-@pytest.mark.parametrize("evt", ["evt3", "evt2"])
-def test_raw_round_trip_of_a_sparse_stream_longer_than_the_24_bit_clock(tmp_path, evt):
-    """EVT 3.0 stores 24-bit times (16.78 s): a longer recording must still read back.
+@pytest.mark.parametrize("suffix", [".h5", ".raw", ".npz", ".txt", ".dat"])
+def test_written_files_get_the_usual_permissions(tmp_path, suffix):
+    """Atomic writes go through a private temporary file; the result must not stay 0600."""
+    mask = os.umask(0o022)
+    try:
+        path = tmp_path / f"mode{suffix}"
+        write_events(path, hand_events(), (640, 480))
+        assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    finally:
+        os.umask(mask)
 
-    One event every 100 ms for 40 s: every gap is far below the 16.8 s limit that
-    the writer checks, yet the relative clock wraps twice.
+
+def test_raw_round_trip_of_a_sparse_stream_longer_than_the_24_bit_clock(tmp_path):
+    """EVT 2.0 (the default) keeps 34-bit times: 40 s of sparse events read back exactly.
+
+    One event every 100 ms for 40 s: EVT 3.0's 24-bit clock (16.78 s) would wrap twice.
     """
     t = T_ABS + np.arange(0, 40_000_000, 100_000)
     ev = make_events(t, t % 7, t % 5, (t // 100_000) % 2)
-    path = tmp_path / f"long_{evt}.raw"
-    write_events(path, ev, (8, 8), evt_version=evt)
+    path = tmp_path / "long_evt2.raw"
+    write_events(path, ev, (8, 8))
     events = read_events(path).events
-    assert events.size == ev.size
-    wrong = np.flatnonzero(events["t"] != ev["t"])
-    assert wrong.size == 0, (
-        f"{wrong.size} of {ev.size} timestamps differ; first at index {wrong[0]}: "
-        f"read {events['t'][wrong[0]] - T_ABS} µs after t0, wrote {ev['t'][wrong[0]] - T_ABS}"
-    )
     assert same_events(events, ev)
+
+
+def test_evt3_refuses_streams_longer_than_its_clock(tmp_path):
+    """faery 0.7 writes EVT 3.0 that no reader can unwrap past 16.78 s (232 of these 400
+    timestamps came back clamped), so such a write is refused instead of corrupted."""
+    t = T_ABS + np.arange(0, 40_000_000, 100_000)
+    ev = make_events(t, t % 7, t % 5, (t // 100_000) % 2)
+    with pytest.raises(EventFileError, match=r"must span less than 16\.8 s"):
+        write_events(tmp_path / "long_evt3.raw", ev, (8, 8), evt_version="evt3")
+    assert list(tmp_path.iterdir()) == []
 
 
 # -- sensor size sources -----------------------------------------------------------------
@@ -207,8 +237,15 @@ def test_txt_with_decimal_times_is_read_as_seconds(tmp_path):
 
 def test_npz_with_signed_polarity(tmp_path):
     path = tmp_path / "pm.npz"
-    np.savez(path, t=np.array([1, 2, 3]), x=np.array([0, 1, 2]), y=np.array([0, 0, 0]),
-             p=np.array([-1, 1, -1]), width=4, height=1)
+    np.savez(
+        path,
+        t=np.array([1, 2, 3]),
+        x=np.array([0, 1, 2]),
+        y=np.array([0, 0, 0]),
+        p=np.array([-1, 1, -1]),
+        width=4,
+        height=1,
+    )
     events, size = read_events(path)
     assert events["p"].tolist() == [0, 1, 0] and size == (4, 1)
 
@@ -308,3 +345,50 @@ def test_property_npz_round_trip(tmp_path, case):
     back, back_size = read_events(path)
     assert back_size == size
     assert same_events(back, events)
+
+
+# -- DAT details -----------------------------------------------------------------------------
+
+
+def _dat_file(path, header, t32, data):
+    records = np.empty(len(t32), dtype=[("t", "<u4"), ("data", "<u4")])
+    records["t"] = t32
+    records["data"] = data
+    path.write_bytes(header + bytes([0x0C, 8]) + records.tobytes())
+
+
+@pytest.mark.parametrize("chunk", [1 << 20, 2, 3])
+def test_dat_unwraps_32_bit_time(tmp_path, monkeypatch, chunk):
+    monkeypatch.setattr(dat_module, "_CHUNK", chunk)
+    path = tmp_path / "wrap.dat"
+    t32 = [4_294_967_000, 4_294_967_295, 0, 100, 4_294_967_200, 5]
+    _dat_file(path, b"% Version 2\n% Width 8\n% Height 8\n% t0 7\n", t32, [0] * 6)
+    events = read_events(path).events
+    assert events["t"].tolist() == [
+        7 + 4_294_967_000,
+        7 + 4_294_967_295,
+        7 + 2**32,
+        7 + 2**32 + 100,
+        7 + 2**32 + 4_294_967_200,
+        7 + 2**33 + 5,
+    ]
+
+
+def test_dat_version_1_bit_layout(tmp_path):
+    path = tmp_path / "v1.dat"
+    # x in bits 0-8, y in bits 9-16, polarity in bit 17
+    data = [303 | (239 << 9) | (1 << 17), 5 | (7 << 9)]
+    _dat_file(path, b"% Version 1\n% Width 304\n% Height 240\n", [10, 20], data)
+    events, size = read_events(path)
+    assert size == (304, 240)
+    assert events[["t", "x", "y", "p"]].tolist() == [(10, 303, 239, 1), (20, 5, 7, 0)]
+
+
+def test_dat_version_2_bit_layout_and_header(tmp_path):
+    path = tmp_path / "v2.dat"
+    write_events(path, make_events([T_ABS, T_ABS + 3], [1279, 2], [719, 3], [1, 0]), (1280, 720))
+    data = path.read_bytes()
+    assert b"% Width 1280\n% Height 720\n" in data and f"% t0 {T_ABS}\n".encode() in data
+    records = np.frombuffer(data[-16:], dtype=[("t", "<u4"), ("data", "<u4")])
+    assert records["t"].tolist() == [0, 3]
+    assert records["data"].tolist() == [1279 | (719 << 14) | (1 << 28), 2 | (3 << 14)]

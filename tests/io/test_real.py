@@ -12,17 +12,38 @@ import hashlib
 
 import numpy as np
 import pytest
-from conftest import same_events
 
+from conftest import same_events
 from edeflare.events import iter_time_windows
 from edeflare.io import iter_windows, open_events, read_events
 from edeflare.io.faery_formats import read_raw_header
 
 # name: (events, ON events, sensor size, first t, span = last t - first t, SOURCES ON fraction)
 RECORDINGS = {
-    "davis346_flicker_lamps.aedat4": (117_667, 72_363, (346, 260), 1_633_953_690_975_950, 129_999, 0.615),
-    "davis346_lowlight_cradle.aedat4": (319_512, 166_736, (346, 260), 1_643_243_628_737_093, 510_990, None),
-    "davis346_street_cars.aedat4": (78_830, 41_257, (346, 260), 1_589_163_147_368_868, 2_359_945, None),
+    "davis346_flicker_lamps.aedat4": (
+        117_667,
+        72_363,
+        (346, 260),
+        1_633_953_690_975_950,
+        129_999,
+        0.615,
+    ),
+    "davis346_lowlight_cradle.aedat4": (
+        319_512,
+        166_736,
+        (346, 260),
+        1_643_243_628_737_093,
+        510_990,
+        None,
+    ),
+    "davis346_street_cars.aedat4": (
+        78_830,
+        41_257,
+        (346, 260),
+        1_589_163_147_368_868,
+        2_359_945,
+        None,
+    ),
     "prophesee_gen3_rotating_light.raw": (539_481, 367_855, (640, 480), 1_317_888, 50_000, 0.68),
     # SOURCES.md says "54 ms" for this file, but its EVT 3.0 TIME_HIGH words only run from
     # 2861 to 2863 (see test_gen41_street_time_high_words): the recording spans 8.8 ms.
@@ -88,8 +109,11 @@ def test_gen3_on_fraction_measured_value(real_data):
 
 
 def test_aedat4_times_are_absolute_unix_microseconds(real_data):
-    for name in ("davis346_flicker_lamps.aedat4", "davis346_lowlight_cradle.aedat4",
-                 "davis346_street_cars.aedat4"):
+    for name in (
+        "davis346_flicker_lamps.aedat4",
+        "davis346_lowlight_cradle.aedat4",
+        "davis346_street_cars.aedat4",
+    ):
         first = RECORDINGS[name][3]
         assert 1.5e15 < first < 1.7e15  # 2017..2023
 

@@ -31,9 +31,9 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("--end-ms", type=float, help="keep events before this absolute time (ms)")
     p.add_argument(
         "--evt-version",
-        default="evt3",
-        choices=["evt3", "evt2", "evt2.1"],
-        help="encoding of .raw outputs",
+        default="evt2",
+        choices=["evt2", "evt3"],
+        help="encoding of .raw outputs (EVT 3.0 output must span under 16.8 s)",
     )
     p.set_defaults(func=run)
 

@@ -69,9 +69,14 @@ class _Format:
 def _write_dsec(
     tmp: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path
 ) -> None:
-    with DsecWriter(tmp, sensor_size, atomic=False) as writer:
-        for events in chunks:
-            writer.append(events)
+    try:
+        with DsecWriter(tmp, sensor_size, atomic=False) as writer:
+            for events in chunks:
+                writer.append(events)
+    except EventFileError as exc:
+        if exc.path != str(tmp):
+            raise
+        raise EventFileError(target, exc.problem) from None  # name the target, not the temp
 
 
 _FORMATS: tuple[_Format, ...] = (
@@ -397,7 +402,7 @@ def write_event_chunks(
     chunks: Iterable[np.ndarray],
     sensor_size: SensorSize,
     *,
-    evt_version: str = "evt3",
+    evt_version: str = "evt2",
 ) -> int:
     """Write a stream of sorted chunks atomically; return the number of events written.
 
@@ -407,8 +412,10 @@ def write_event_chunks(
 
     Parameters
     ----------
-    evt_version : {"evt3", "evt2", "evt2.1"}
-        Encoding of ``.raw`` files.
+    evt_version : {"evt2", "evt3"}
+        Encoding of ``.raw`` files. EVT 2.0 (default) spans up to 4.77 hours;
+        EVT 3.0 is more compact but, as faery writes it, must span less than
+        16.8 s.
     """
     path = Path(path)
     fmt = _format_for(path)
@@ -416,8 +423,8 @@ def write_event_chunks(
         sensor_size = check_sensor_size(sensor_size)
     except EventsError as exc:
         raise EventFileError(path, str(exc)) from None
-    if evt_version not in ("evt3", "evt2", "evt2.1"):
-        raise EventFileError(path, f"evt_version must be evt3, evt2 or evt2.1, got {evt_version!r}")
+    if evt_version not in ("evt2", "evt3"):
+        raise EventFileError(path, f"evt_version must be evt2 or evt3, got {evt_version!r}")
     count = 0
 
     def validated() -> Iterator[np.ndarray]:
@@ -436,15 +443,17 @@ def write_event_chunks(
             count += events.size
             yield events
 
-    atomic = AtomicFile(path)
+    atomic: AtomicFile | None = None
     try:
+        atomic = AtomicFile(path)
         kwargs = {"evt_version": evt_version} if fmt.suffixes == (".raw",) else {}
         fmt.writer(atomic.tmp, validated(), sensor_size, target=path, **kwargs)
         atomic.commit()
     except OSError as exc:
         raise EventFileError(path, f"cannot write ({exc})") from None
     finally:
-        atomic.discard()
+        if atomic is not None:
+            atomic.discard()
     return count
 
 
@@ -453,7 +462,7 @@ def write_events(
     events: np.ndarray,
     sensor_size: SensorSize,
     *,
-    evt_version: str = "evt3",
+    evt_version: str = "evt2",
 ) -> None:
     """Write an event stream to ``path`` (format by suffix), atomically.
 

@@ -289,9 +289,10 @@ class DsecWriter:
         self.path = Path(path)
         self.sensor_size = check_sensor_size(sensor_size)
         self.t_offset = t_offset_us
-        self._atomic = AtomicFile(self.path) if atomic else None
+        self._atomic: AtomicFile | None = None
         self._closed = False
         try:
+            self._atomic = AtomicFile(self.path) if atomic else None
             self._file = h5py.File(self.path if self._atomic is None else self._atomic.tmp, "w")
             comp = _compression()
             g = self._file.create_group("events")
@@ -305,6 +306,9 @@ class DsecWriter:
                 "ms_to_idx", shape=(0,), maxshape=(None,), dtype="<u8", chunks=(8192,), **comp
             )
             self._file.attrs["sensor_size"] = np.asarray(self.sensor_size, dtype=np.int64)
+        except OSError as exc:
+            self._abort()
+            raise EventFileError(self.path, f"cannot write ({exc})") from None
         except BaseException:
             self._abort()
             raise

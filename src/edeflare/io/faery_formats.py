@@ -35,8 +35,18 @@ _PLUGIN_SIZES: tuple[tuple[str, SensorSize], ...] = (
     ("imx67", (320, 320)),
 )
 
-# EVT 3.0 stores 24-bit times: a silence of 2**24 µs (16.8 s) cannot be represented.
-_EVT3_MAX_GAP_US = 1 << 24
+# faery 0.7's EVT 3.0 encoder advances TIME_HIGH in jumps that its decoder (and other
+# readers) cannot follow across the 24-bit wrap, so a written stream must span less
+# than 2**24 µs (16.8 s). Real camera files, which emit every TIME_HIGH, read fine.
+_EVT3_MAX_SPAN_US = 1 << 24
+# EVT 2.0 keeps 34 bits of microseconds (28-bit TIME_HIGH of 64 µs): 4.77 hours.
+_EVT2_MAX_SPAN_US = 1 << 34
+_SPAN_LIMITS = {"evt3": (_EVT3_MAX_SPAN_US, "16.8 s"), "evt2": (_EVT2_MAX_SPAN_US, "4.77 h")}
+
+
+def _faery_failed(exc: BaseException) -> bool:
+    """True for errors raised by faery itself, including Rust panics (a BaseException)."""
+    return not isinstance(exc, (KeyboardInterrupt, SystemExit, GeneratorExit))
 
 
 class RawHeader:
@@ -139,14 +149,20 @@ def open_faery(
         decoder = faery.events_stream_from_file(path, **kwargs)  # type: ignore[arg-type]
         if suffix != ".raw":
             recorded = tuple(int(v) for v in decoder.dimensions())  # type: ignore[assignment]
-    except Exception as exc:  # faery raises bare Exception/RuntimeError
+    except BaseException as exc:  # faery raises bare Exception, RuntimeError or Rust panics
+        if not _faery_failed(exc):
+            raise
         raise EventFileError(path, f"cannot decode ({exc})") from None
 
     def chunks() -> Iterator[np.ndarray]:
         try:
             for chunk in decoder:
                 yield _to_events(chunk)
-        except Exception as exc:
+        except EventFileError:
+            raise
+        except BaseException as exc:
+            if not _faery_failed(exc):
+                raise
             raise EventFileError(path, f"corrupt or truncated data ({exc})") from None
 
     return recorded, chunks()
@@ -158,7 +174,7 @@ def write_faery(
     sensor_size: SensorSize,
     *,
     target: Path,
-    evt_version: str = "evt3",
+    evt_version: str = "evt2",
 ) -> None:
     """Write chunks with faery to ``tmp_path`` (whose suffix picks the format).
 
@@ -166,7 +182,7 @@ def write_faery(
     field, so its times start at the first event (as faery writes them).
     """
     suffix = target.suffix.lower()
-    state = {"last": None}
+    first: list[int] = []
 
     def converted() -> Iterator[np.ndarray]:
         for events in chunks:
@@ -175,16 +191,15 @@ def write_faery(
             t = events["t"]
             if t[0] < 0:
                 raise EventFileError(target, f"{suffix} cannot store negative timestamps")
-            if suffix == ".raw" and evt_version == "evt3":
-                prev = state["last"]
-                gaps = np.diff(t) if prev is None else np.diff(t, prepend=prev)
-                if gaps.size and gaps.max() >= _EVT3_MAX_GAP_US:
-                    raise EventFileError(
-                        target,
-                        "EVT 3.0 cannot store a silence of 16.8 s or more "
-                        f"(largest gap {int(gaps.max())} µs); use EVT 2.0 or .h5",
-                    )
-            state["last"] = t[-1]
+            if not first:
+                first.append(int(t[0]))
+            if suffix == ".raw" and int(t[-1]) - first[0] >= _SPAN_LIMITS[evt_version][0]:
+                limit = _SPAN_LIMITS[evt_version][1]
+                raise EventFileError(
+                    target,
+                    f"{evt_version.upper()} output must span less than {limit}; this stream "
+                    f"spans {(int(t[-1]) - first[0]) / 1e6:.1f} s. Use evt2 (4.77 h) or .h5",
+                )
             yield _to_faery(events)
 
     kwargs: dict[str, object] = {}
@@ -202,5 +217,7 @@ def write_faery(
         )
     except EventFileError:
         raise
-    except Exception as exc:
+    except BaseException as exc:
+        if not _faery_failed(exc):
+            raise
         raise EventFileError(target, f"cannot write ({exc})") from None
