@@ -24,7 +24,7 @@ import numpy as np
 from .errors import EventsError
 from .events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size
 
-__all__ = ["decode", "encode", "encode_polarity"]
+__all__ = ["decode", "decode_keep", "encode", "encode_polarity"]
 
 # Windows longer than this (16.8 s) are sorted with numpy instead of a counting sort.
 _COUNTING_SORT_MAX_US = 1 << 24
@@ -311,3 +311,83 @@ def _decode_by_argsort(
     events["x"] = (rem % width)[order]
     events["p"] = np.repeat(counts > 0, reps)[order]
     return events
+
+
+@numba.njit(cache=True, nogil=True)
+def _keep_mask(cells, p, order, budget_on, budget_off):  # pragma: no cover - compiled
+    """Keep input events while their cell still has budget for their polarity.
+
+    Events are visited in the random ``order``, so the kept ones are a
+    uniform random subset of each cell's events of that polarity.
+    """
+    keep = np.zeros(cells.size, dtype=np.bool_)
+    for k in range(order.size):
+        i = order[k]
+        c = cells[i]
+        if p[i]:
+            if budget_on[c] > 0:
+                budget_on[c] -= 1
+                keep[i] = True
+        elif budget_off[c] > 0:
+            budget_off[c] -= 1
+            keep[i] = True
+    return keep
+
+
+def decode_keep(
+    voxel: np.ndarray,
+    events: np.ndarray,
+    window_start_us: int,
+    window_us: int,
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
+    """Decode a restored grid by keeping the input's own events where the grid keeps them.
+
+    For each cell the rounded restored value ``n`` is a budget of ``|n|``
+    events of polarity ``sgn(n)``: input events of that polarity in that cell
+    are kept (a seeded uniform random subset when there are more than the
+    budget), input events of the other polarity are dropped, and only the
+    budget left over is synthesised as :func:`decode` does. Kept events keep
+    their real timestamps, so a model that removes flare and leaves the rest
+    returns the rest exactly; ``encode`` of the result still equals
+    ``rint(voxel)``.
+
+    Parameters
+    ----------
+    voxel : numpy.ndarray
+        Restored ``(bins, H, W)`` grid.
+    events : numpy.ndarray
+        The input events of the window (sorted, inside it).
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([3, 7, 12], [0, 0, 1], [0, 0, 0], [1, 1, 0])
+    >>> grid = encode(ev, (2, 1), 0, 16, bins=2)
+    >>> grid[0, 0, 0] = 1            # the model keeps one of the two ON events
+    >>> out = decode_keep(grid, ev, 0, 16, rng=0)
+    >>> len(out), int(out["t"][-1])  # the OFF event keeps its own timestamp
+    (2, 12)
+    """
+    voxel = np.asarray(voxel)
+    if voxel.ndim != 3:
+        raise EventsError(f"voxel must have shape (bins, H, W), got {voxel.shape}")
+    bins, height, width = voxel.shape
+    if voxel.dtype.kind == "f" and not np.isfinite(voxel).all():
+        raise EventsError("voxel contains NaN or infinity")
+    _checked(events, (width, height), window_start_us, window_us, bins)
+    rng = np.random.default_rng(rng)
+    counts = np.rint(voxel).astype(np.int64).reshape(-1)
+    budget_on = np.maximum(counts, 0)
+    budget_off = np.maximum(-counts, 0)
+    b = ((events["t"] - int(window_start_us)) * bins) // int(window_us)
+    cells = (b * height + events["y"].astype(np.int64)) * width + events["x"]
+    order = rng.permutation(events.size)
+    keep = _keep_mask(cells, events["p"], order, budget_on, budget_off)
+    leftover = (budget_on - budget_off).reshape(voxel.shape)
+    added = decode(leftover, window_start_us, window_us, rng)
+    kept = events[keep]
+    if not added.size:
+        return kept
+    merged = np.concatenate([kept, added])
+    return merged[np.argsort(merged["t"], kind="stable")]

@@ -34,7 +34,7 @@ from ..errors import EventFileError, EventsError
 from ..events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size
 from ._atomic import AtomicFile
 
-__all__ = ["DsecReader", "DsecWriter", "read_dsec", "write_dsec"]
+__all__ = ["DsecReader", "DsecWriter", "read_dsec", "write_dsec", "write_dsec_groups"]
 
 _CHUNK = 1 << 17
 _U32_MAX = np.iinfo(np.uint32).max
@@ -245,6 +245,66 @@ def read_dsec(
         return reader.read(), reader.recorded_sensor_size
 
 
+class _StreamGroup:
+    """The datasets of one event stream inside an open HDF5 group, appended chunk by chunk.
+
+    Raises ``ValueError`` with a user-facing message on out-of-order chunks or
+    times that do not fit; the callers add the file name.
+    """
+
+    def __init__(self, group: h5py.Group, t_offset_us: int | None) -> None:
+        comp = _compression()
+        events = group.create_group("events")
+        self._group = group
+        self._ds = {
+            name: events.create_dataset(
+                name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_CHUNK,), **comp
+            )
+            for name, dtype in (("x", "<u2"), ("y", "<u2"), ("p", "u1"), ("t", "<u4"))
+        }
+        self._ms = group.create_dataset(
+            "ms_to_idx", shape=(0,), maxshape=(None,), dtype="<u8", chunks=(8192,), **comp
+        )
+        self.t_offset = t_offset_us
+        self.n_events = 0
+        self._last_t: int | None = None
+
+    def append(self, events: np.ndarray) -> None:
+        if events.size == 0:
+            return
+        t = events["t"]
+        if self._last_t is not None and int(t[0]) < self._last_t:
+            raise ValueError(
+                f"chunk starts at t={int(t[0])} before the previous chunk's end {self._last_t}"
+            )
+        if self.t_offset is None:
+            self.t_offset = int(t[0])
+        rel = t - self.t_offset
+        if rel[0] < 0 or rel[-1] > _U32_MAX:
+            raise ValueError(
+                f"relative times must fit uint32 µs (0..{_U32_MAX}, about 71 minutes) from "
+                f"t_offset={self.t_offset}; got [{int(rel[0])}, {int(rel[-1])}]"
+            )
+        n0, n1 = self.n_events, self.n_events + events.size
+        for name in ("x", "y", "p"):
+            self._ds[name].resize((n1,))
+            self._ds[name][n0:n1] = events[name]
+        self._ds["t"].resize((n1,))
+        self._ds["t"][n0:n1] = rel.astype(np.uint32)
+        # ms_to_idx entries for every millisecond up to this chunk's last event.
+        m0 = self._ms.shape[0]
+        m1 = int(rel[-1]) // 1000 + 1
+        if m1 > m0:
+            bounds = np.arange(m0, m1, dtype=np.int64) * 1000
+            self._ms.resize((m1,))
+            self._ms[m0:m1] = n0 + np.searchsorted(rel, bounds, side="left")
+        self.n_events = n1
+        self._last_t = int(t[-1])
+
+    def finish(self) -> None:
+        self._group.create_dataset("t_offset", data=np.int64(self.t_offset or 0))
+
+
 class DsecWriter:
     """Append events chunk by chunk to a DSEC file written atomically.
 
@@ -288,80 +348,44 @@ class DsecWriter:
     ) -> None:
         self.path = Path(path)
         self.sensor_size = check_sensor_size(sensor_size)
-        self.t_offset = t_offset_us
         self._atomic: AtomicFile | None = None
         self._closed = False
         try:
             self._atomic = AtomicFile(self.path) if atomic else None
             self._file = h5py.File(self.path if self._atomic is None else self._atomic.tmp, "w")
-            comp = _compression()
-            g = self._file.create_group("events")
-            self._ds = {
-                name: g.create_dataset(
-                    name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_CHUNK,), **comp
-                )
-                for name, dtype in (("x", "<u2"), ("y", "<u2"), ("p", "u1"), ("t", "<u4"))
-            }
-            self._ms = self._file.create_dataset(
-                "ms_to_idx", shape=(0,), maxshape=(None,), dtype="<u8", chunks=(8192,), **comp
-            )
             self._file.attrs["sensor_size"] = np.asarray(self.sensor_size, dtype=np.int64)
+            self._stream = _StreamGroup(self._file, t_offset_us)
         except OSError as exc:
             self._abort()
             raise EventFileError(self.path, f"cannot write ({exc})") from None
         except BaseException:
             self._abort()
             raise
-        self.n_events = 0
-        self._last_t: int | None = None
+
+    @property
+    def n_events(self) -> int:
+        """Events written so far."""
+        return self._stream.n_events
+
+    @property
+    def t_offset(self) -> int | None:
+        """The file's ``t_offset`` (None until the first event when not given)."""
+        return self._stream.t_offset
 
     def append(self, events: np.ndarray) -> None:
         """Append a sorted chunk whose times do not precede the previous chunk's."""
         try:
             check_events(events, self.sensor_size)
-        except EventsError as exc:
+            self._stream.append(events)
+        except ValueError as exc:  # EventsError is a ValueError too
             self._abort()
             raise EventFileError(self.path, f"cannot write events: {exc}") from None
-        if events.size == 0:
-            return
-        t = events["t"]
-        if self._last_t is not None and int(t[0]) < self._last_t:
-            self._abort()
-            raise EventFileError(
-                self.path,
-                f"chunk starts at t={int(t[0])} before the previous chunk's end {self._last_t}",
-            )
-        if self.t_offset is None:
-            self.t_offset = int(t[0])
-        rel = t - self.t_offset
-        if rel[0] < 0 or rel[-1] > _U32_MAX:
-            self._abort()
-            raise EventFileError(
-                self.path,
-                f"relative times must fit uint32 µs (0..{_U32_MAX}, about 71 minutes) from "
-                f"t_offset={self.t_offset}; got [{int(rel[0])}, {int(rel[-1])}]",
-            )
-        n0, n1 = self.n_events, self.n_events + events.size
-        for name in ("x", "y", "p"):
-            self._ds[name].resize((n1,))
-            self._ds[name][n0:n1] = events[name]
-        self._ds["t"].resize((n1,))
-        self._ds["t"][n0:n1] = rel.astype(np.uint32)
-        # ms_to_idx entries for every millisecond up to this chunk's last event.
-        m0 = self._ms.shape[0]
-        m1 = int(rel[-1]) // 1000 + 1
-        if m1 > m0:
-            bounds = np.arange(m0, m1, dtype=np.int64) * 1000
-            self._ms.resize((m1,))
-            self._ms[m0:m1] = n0 + np.searchsorted(rel, bounds, side="left")
-        self.n_events = n1
-        self._last_t = int(t[-1])
 
     def close(self) -> None:
         """Finish the file and move it into place."""
         if self._closed:
             return
-        self._file.create_dataset("t_offset", data=np.int64(self.t_offset or 0))
+        self._stream.finish()
         self._file.close()
         self._closed = True
         if self._atomic is not None:
@@ -385,6 +409,55 @@ class DsecWriter:
             self.close()
         else:
             self._abort()
+
+
+def write_dsec_groups(
+    path: str | os.PathLike[str],
+    streams: dict[str, np.ndarray],
+    sensor_size: SensorSize,
+    attrs: dict[str, object] | None = None,
+) -> None:
+    """Write several streams to one file, each in the DSEC layout under its own group.
+
+    ``streams["input"]`` lands in ``/input/events/{x,y,p,t}``,
+    ``/input/ms_to_idx`` and ``/input/t_offset``; read it back with
+    ``DsecReader(path, group="input/events")``. Root attributes: ``sensor_size``
+    plus ``attrs`` (strings or numbers). Written atomically.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.events import make_events
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "pair.h5"
+    >>> ev = make_events([10, 20], [0, 1], [0, 0], [1, 0])
+    >>> write_dsec_groups(path, {"input": ev, "gt": ev[:1]}, (2, 1), {"seed": 7})
+    >>> with DsecReader(path, group="gt/events") as r:
+    ...     r.n_events, r.recorded_sensor_size
+    (1, (2, 1))
+    """
+    path = Path(path)
+    sensor_size = check_sensor_size(sensor_size)
+    atomic: AtomicFile | None = None
+    try:
+        atomic = AtomicFile(path)
+        with h5py.File(atomic.tmp, "w") as f:
+            f.attrs["sensor_size"] = np.asarray(sensor_size, dtype=np.int64)
+            for key, value in (attrs or {}).items():
+                f.attrs[key] = value
+            for name, events in streams.items():
+                try:
+                    check_events(events, sensor_size)
+                    stream = _StreamGroup(f.create_group(name), None)
+                    stream.append(events)
+                    stream.finish()
+                except ValueError as exc:
+                    raise EventFileError(path, f"stream {name!r}: {exc}") from None
+        atomic.commit()
+    except OSError as exc:
+        raise EventFileError(path, f"cannot write ({exc})") from None
+    finally:
+        if atomic is not None:
+            atomic.discard()
 
 
 def write_dsec(

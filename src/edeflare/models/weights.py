@@ -1,0 +1,154 @@
+"""Weights on disk: safetensors plus a JSON model card; never a pickle.
+
+A weights file is a ``.safetensors`` file whose metadata holds
+``edeflare_card``: the :class:`ModelCard` (preset name, bins, window, the
+command, data recipe and seed that trained it, its metrics). Loading
+checks the card's preset and every tensor's name and shape against a fresh
+model of that preset before copying the values, so a file of another
+preset, a truncated file or a pickle gives a clear error and no model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+from torch import nn
+
+from ..errors import EdeflareError
+from ..io._atomic import atomic_path
+from . import create_model, get_preset
+
+__all__ = ["ModelCard", "WeightsError", "load_model", "read_card", "save_model"]
+
+_CARD_KEY = "edeflare_card"
+
+
+class WeightsError(EdeflareError):
+    """A weights file is missing, corrupt, a pickle, or does not fit its preset."""
+
+
+@dataclass(frozen=True)
+class ModelCard:
+    """What a weights file is and how it was made.
+
+    Examples
+    --------
+    >>> card = ModelCard(preset="unet2d.lite", seed=3)
+    >>> ModelCard.from_dict(card.to_dict()) == card
+    True
+    """
+
+    preset: str
+    bins: int = 8
+    window_us: int = 20_000
+    command: str = ""
+    data: str = ""
+    seed: int | None = None
+    metrics: dict[str, Any] = field(default_factory=dict)
+    notes: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ModelCard:
+        """Build from a dict, rejecting unknown keys."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise WeightsError(f"unknown model card keys {unknown}; known: {sorted(known)}")
+        if "preset" not in data:
+            raise WeightsError("model card lacks 'preset'")
+        return cls(**data)
+
+
+def save_model(path: str | os.PathLike[str], model: nn.Module, card: ModelCard) -> None:
+    """Write ``model``'s weights and ``card`` to a ``.safetensors`` file, atomically.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.models import create_model
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "m.safetensors"
+    >>> save_model(p, create_model("unet2d.lite"), ModelCard(preset="unet2d.lite"))
+    >>> load_model(p)[1].preset
+    'unet2d.lite'
+    """
+    get_preset(card.preset)
+    tensors = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    with atomic_path(Path(path)) as tmp:
+        save_file(tensors, str(tmp), metadata={_CARD_KEY: json.dumps(card.to_dict())})
+
+
+def _check_file(path: Path) -> None:
+    if not path.is_file():
+        raise WeightsError(f"{path}: no such weights file")
+    with open(path, "rb") as f:
+        head = f.read(9)
+    # safetensors: an 8-byte little-endian header length, then the JSON header "{...".
+    # torch.save writes a zip ("PK"), older pickles start with the PROTO opcode 0x80.
+    if head[8:9] != b"{" and (head[:2] == b"PK" or head[:1] == b"\x80"):
+        raise WeightsError(
+            f"{path}: looks like a pickle/torch.save file; edeflare only loads safetensors "
+            "(pickles can run code)"
+        )
+
+
+def read_card(path: str | os.PathLike[str]) -> ModelCard:
+    """The model card of a weights file, without loading the tensors."""
+    path = Path(path)
+    _check_file(path)
+    try:
+        from safetensors import safe_open
+
+        with safe_open(str(path), framework="pt") as f:
+            meta = f.metadata() or {}
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise WeightsError(f"{path}: not a readable safetensors file ({exc})") from None
+    if _CARD_KEY not in meta:
+        raise WeightsError(f"{path}: no edeflare model card in the metadata")
+    try:
+        return ModelCard.from_dict(json.loads(meta[_CARD_KEY]))
+    except json.JSONDecodeError as exc:
+        raise WeightsError(f"{path}: model card is not JSON ({exc})") from None
+
+
+def load_model(
+    path: str | os.PathLike[str], device: str | torch.device = "cpu"
+) -> tuple[nn.Module, ModelCard]:
+    """Build the card's preset and load the weights into it: ``(model in eval mode, card)``."""
+    path = Path(path)
+    card = read_card(path)
+    try:
+        model = create_model(card.preset)
+    except ValueError as exc:
+        raise WeightsError(f"{path}: {exc}") from None
+    try:
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise WeightsError(f"{path}: corrupt weights ({exc})") from None
+    expected = model.state_dict()
+    missing = sorted(set(expected) - set(tensors))
+    extra = sorted(set(tensors) - set(expected))
+    if missing or extra:
+        raise WeightsError(
+            f"{path}: tensors do not fit preset {card.preset!r} "
+            f"(missing {missing[:3]}, unexpected {extra[:3]})"
+        )
+    for name, value in tensors.items():
+        if value.shape != expected[name].shape:
+            raise WeightsError(
+                f"{path}: tensor {name} has shape {tuple(value.shape)}, preset {card.preset!r} "
+                f"needs {tuple(expected[name].shape)}"
+            )
+    model.load_state_dict(tensors)
+    return model.to(device).eval(), card
