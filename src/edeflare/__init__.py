@@ -13,6 +13,16 @@ Examples
 
 from __future__ import annotations
 
+import os as _os
+
+import numba as _numba
+
+# numba's default threading layer here is GNU OpenMP, which kills any child process
+# forked after a parallel kernel ran (data-loader workers, dataset-generation pools).
+# The workqueue layer is fork-safe; users can still choose with NUMBA_THREADING_LAYER.
+if "NUMBA_THREADING_LAYER" not in _os.environ:
+    _numba.config.THREADING_LAYER = "workqueue"
+
 from .errors import EdeflareError, EventFileError, EventsError, UnknownFormatError
 from .events import (
     EVENT_DTYPE,

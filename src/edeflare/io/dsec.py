@@ -139,6 +139,7 @@ class DsecReader:
             if "t_offset" in parent and isinstance(parent.get("t_offset"), h5py.Dataset):
                 self.t_offset = int(parent["t_offset"][()])
                 break
+        self.root_attrs: dict[str, Any] = dict(f.attrs)
         self.recorded_sensor_size: SensorSize | None = None
         if "sensor_size" in f.attrs:
             try:

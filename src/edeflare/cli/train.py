@@ -1,0 +1,77 @@
+"""``edeflare train``: train E-DeflareNet on sequence files (one process or torchrun)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import shlex
+import sys
+from pathlib import Path
+
+HELP = "Train E-DeflareNet on paired sequences (DATA/train, optional DATA/test); resumes."
+
+
+def _crop(text: str) -> tuple[int, int]:
+    try:
+        h, w = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"crop must look like 128x128 (HxW), got {text!r}"
+        ) from None
+    return h, w
+
+
+def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "train",
+        help=HELP,
+        description=HELP + " Run under `torchrun --nproc_per_node N -m edeflare train ...` for DDP "
+        "(NCCL on GPUs, gloo on CPUs). Unset options take the --config preset's values.",
+        **kwargs,
+    )
+    p.add_argument("data", type=Path, help="dataset folder with train/ (and test/) *.h5 sequences")
+    p.add_argument(
+        "--out", type=Path, required=True, help="run folder (resumed if it has a checkpoint)"
+    )
+    p.add_argument(
+        "--config",
+        choices=["paper", "cpu"],
+        default="cpu",
+        help="base configuration: the paper's, or a light one for CPUs",
+    )
+    p.add_argument("--preset", help="model preset (see edeflare.models.list_models())")
+    p.add_argument("--iterations", type=int)
+    p.add_argument("--batch-size", type=int, help="windows per process and iteration")
+    p.add_argument("--lr", type=float)
+    p.add_argument("--crop", type=_crop, metavar="HxW", help="random crop size")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--val-every", type=int)
+    p.add_argument("--checkpoint-every", type=int)
+    p.add_argument("--workers", type=int, dest="num_workers", help="data loader processes")
+    p.add_argument("--device", help="auto, cpu, cuda, cuda:1 ...")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build the configuration, then train."""
+    from ..data.pairs import list_sequences
+    from ..train import TRAIN_PRESETS, train
+
+    base = TRAIN_PRESETS[args.config]
+    overrides = {
+        f.name: getattr(args, f.name)
+        for f in dataclasses.fields(base)
+        if f.name != "data" and getattr(args, f.name, None) is not None
+    }
+    config = dataclasses.replace(base, **overrides, data=str(args.data))
+    test_dir = args.data / "test"
+    final = train(
+        config,
+        list_sequences(args.data / "train"),
+        args.out,
+        val_paths=list_sequences(test_dir) if test_dir.is_dir() else None,
+        command="edeflare " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+    )
+    print(f"trained {config.preset} for {config.iterations} iterations: {final}")
+    return 0

@@ -1,0 +1,1 @@
+"""Paired datasets: sequence files of input and ground-truth streams, cut into voxel windows."""

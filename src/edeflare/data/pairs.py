@@ -1,0 +1,210 @@
+"""Paired voxel windows for training and validation.
+
+A *sequence file* is an HDF5 file written by
+:func:`edeflare.io.dsec.write_dsec_groups` with (at least) the groups
+``input`` (flare-corrupted events) and ``gt`` (ground truth), each in the
+DSEC layout, the root attribute ``sensor_size`` and optionally
+``t_start_us`` / ``t_end_us`` (the sequence span; otherwise the span of its
+events). A dataset folder holds ``train/`` and ``test/`` folders of them.
+
+:class:`PairedWindows` cuts every sequence into aligned windows (default
+20 ms) and returns ``(input, target)`` voxel grids ``(1, bins, H, W)``,
+optionally randomly cropped and flipped. Augmentations are drawn from a
+generator seeded by ``(seed, epoch, index)``, so a sample is the same on any
+worker, rank or resume.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import EventFileError
+from ..events import SensorSize, window_start_for
+from ..io.dsec import DsecReader
+from ..voxel import encode
+
+__all__ = ["PairedWindows", "WindowRef", "list_sequences", "sequence_windows"]
+
+
+@dataclass(frozen=True)
+class WindowRef:
+    """One window of one sequence file."""
+
+    path: Path
+    start_us: int
+
+
+def list_sequences(folder: str | os.PathLike[str]) -> list[Path]:
+    """Sequence files (``*.h5``) of a folder, sorted by name."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise EventFileError(folder, "no such dataset folder")
+    files = sorted(p for p in folder.glob("*.h5") if not p.name.startswith("."))
+    if not files:
+        raise EventFileError(folder, "holds no sequence files (*.h5)")
+    return files
+
+
+def _span(path: Path, groups: Sequence[str]) -> tuple[SensorSize, int, int] | None:
+    """Sensor size and ``[start, end)`` of a sequence (None when it holds no events)."""
+    starts, ends = [], []
+    size: SensorSize | None = None
+    for group in groups:
+        with DsecReader(path, group=f"{group}/events") as reader:
+            size = size or reader.recorded_sensor_size
+            attrs = reader.root_attrs
+            span = reader.time_range()
+        if "t_start_us" in attrs and "t_end_us" in attrs:
+            return size or _no_size(path), int(attrs["t_start_us"]), int(attrs["t_end_us"])
+        if span is not None:
+            starts.append(span[0])
+            ends.append(span[1] + 1)
+    if size is None:
+        _no_size(path)
+    if not starts:
+        return None
+    return size, min(starts), max(ends)  # type: ignore[return-value]
+
+
+def _no_size(path: Path) -> SensorSize:
+    raise EventFileError(path, "records no sensor_size attribute")
+
+
+def sequence_windows(
+    paths: Sequence[str | os.PathLike[str]],
+    window_us: int = 20_000,
+    groups: Sequence[str] = ("input", "gt"),
+) -> tuple[list[WindowRef], SensorSize]:
+    """Aligned windows of every sequence and the common sensor size.
+
+    Windows start at the multiple of ``window_us`` at or below the sequence
+    start and cover it to its end; sequences of another sensor size are an error.
+    """
+    refs: list[WindowRef] = []
+    common: SensorSize | None = None
+    for p in paths:
+        path = Path(p)
+        found = _span(path, groups)
+        if found is None:
+            continue
+        size, start, end = found
+        if common is None:
+            common = size
+        elif size != common:
+            raise EventFileError(path, f"sensor size {size} differs from {common}")
+        first = window_start_for(start, window_us)
+        refs.extend(WindowRef(path, s) for s in range(first, end, window_us))
+    if common is None:
+        raise EventFileError(Path(paths[0]) if paths else Path("."), "no events in any sequence")
+    return refs, common
+
+
+class PairedWindows:
+    """A map-style dataset of ``(input, target)`` voxel grids, each ``(1, bins, H, W)`` float32.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        Sequence files.
+    window_us, bins : int
+        Window length and time bins (paper: 20 ms, 8).
+    crop : (height, width), optional
+        Random crop of this size (training on CPU); None keeps the full sensor.
+    flip : bool
+        Random horizontal and vertical flips.
+    seed : int
+        Seeds the augmentations together with the epoch and the index.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.events import make_events
+    >>> from edeflare.io.dsec import write_dsec_groups
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "seq.h5"
+    >>> ev = make_events([100, 25_000], [1, 2], [1, 2], [1, 0])
+    >>> write_dsec_groups(p, {"input": ev, "gt": ev[:1]}, (4, 4))
+    >>> ds = PairedWindows([p])
+    >>> len(ds), ds[0][0].shape, float(ds[1][0].sum()), float(ds[1][1].sum())
+    (2, (1, 8, 4, 4), -1.0, 0.0)
+    """
+
+    def __init__(
+        self,
+        paths: Sequence[str | os.PathLike[str]],
+        *,
+        window_us: int = 20_000,
+        bins: int = 8,
+        crop: tuple[int, int] | None = None,
+        flip: bool = False,
+        seed: int = 0,
+        input_group: str = "input",
+        target_group: str = "gt",
+    ) -> None:
+        self.window_us, self.bins = int(window_us), int(bins)
+        self.groups = (input_group, target_group)
+        self.windows, self.sensor_size = sequence_windows(paths, window_us, self.groups)
+        width, height = self.sensor_size
+        if crop is not None and (crop[0] > height or crop[1] > width):
+            raise ValueError(f"crop {crop} (height, width) exceeds the sensor {width}x{height}")
+        self.crop = crop
+        self.flip = flip
+        self.seed = int(seed)
+        self.epoch = 0
+        self._readers: dict[tuple[Path, str], DsecReader] = {}
+
+    def __len__(self) -> int:
+        return len(self.windows)
+
+    def set_epoch(self, epoch: int) -> None:
+        """Change the augmentation draws (call once per epoch)."""
+        self.epoch = int(epoch)
+
+    def _reader(self, path: Path, group: str) -> DsecReader:
+        key = (path, group)
+        if key not in self._readers:  # opened lazily, once per worker process
+            self._readers[key] = DsecReader(path, group=f"{group}/events")
+        return self._readers[key]
+
+    def grids(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """Uncropped ``(input, target)`` grids ``(bins, H, W)`` of window ``index``."""
+        ref = self.windows[index]
+        out = []
+        for group in self.groups:
+            events = self._reader(ref.path, group).read_time(
+                ref.start_us, ref.start_us + self.window_us
+            )
+            out.append(encode(events, self.sensor_size, ref.start_us, self.window_us, self.bins))
+        return out[0], out[1]
+
+    def __getitem__(self, key: int | tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Window ``key`` at the current epoch, or ``(index, epoch)`` (for samplers)."""
+        if isinstance(key, tuple):
+            return self.item(*key)
+        return self.item(key, self.epoch)
+
+    def item(self, index: int, epoch: int) -> tuple[np.ndarray, np.ndarray]:
+        """Window ``index`` with the augmentation draws of ``epoch`` (stateless)."""
+        x, y = self.grids(index)
+        rng = np.random.default_rng((self.seed, int(epoch), int(index)))
+        if self.crop is not None:
+            ch, cw = self.crop
+            top = int(rng.integers(0, x.shape[1] - ch + 1))
+            left = int(rng.integers(0, x.shape[2] - cw + 1))
+            x = x[:, top : top + ch, left : left + cw]
+            y = y[:, top : top + ch, left : left + cw]
+        if self.flip:
+            if rng.random() < 0.5:
+                x, y = x[:, :, ::-1], y[:, :, ::-1]
+            if rng.random() < 0.5:
+                x, y = x[:, ::-1, :], y[:, ::-1, :]
+        return np.ascontiguousarray(x)[None], np.ascontiguousarray(y)[None]
+
+    def __getstate__(self) -> dict[str, object]:  # open HDF5 handles do not pickle
+        state = self.__dict__.copy()
+        state["_readers"] = {}
+        return state

@@ -1,0 +1,433 @@
+"""Training E-DeflareNet: one CPU, one GPU, or many through ``torchrun`` (DDP).
+
+The loop is iteration-based with the paper's optimiser (Adam, lr 2e-4,
+weight decay 1e-5), MSE on voxel grids, and a step schedule (x0.2 at epochs
+10/20/30; an epoch is one pass over the training windows). Everything a
+sample depends on is derived from ``(seed, epoch, position)``: which windows
+form a global batch, and each window's crop and flips. Hence
+
+- ``torchrun --nproc_per_node N`` with per-process batch ``b`` trains the
+  same model (up to float summation order) as one process with batch ``N*b``;
+- a run killed at any moment resumes from its last checkpoint exactly as if
+  it had never stopped (the logs are cut back to the checkpoint, so no row
+  is lost or duplicated).
+
+Checkpoints hold tensors and numbers only and are loaded with
+``torch.load(weights_only=True)``; final weights are safetensors with a
+model card (:mod:`edeflare.models.weights`).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import os
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import torch.distributed as dist
+from torch.nn.parallel import DistributedDataParallel
+from tqdm import tqdm
+
+from .data.pairs import PairedWindows
+from .errors import EdeflareError
+from .io._atomic import atomic_path
+from .models import create_model, get_preset
+from .models.weights import ModelCard, save_model
+
+__all__ = ["TRAIN_PRESETS", "TrainConfig", "train"]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that defines a training run (saved as ``config.json`` beside it).
+
+    Examples
+    --------
+    >>> cfg = TrainConfig.from_dict({"preset": "unet2d.lite", "iterations": 10})
+    >>> cfg.iterations, cfg.lr
+    (10, 0.0002)
+    """
+
+    preset: str = "unet3d.paper"
+    iterations: int = 40_000
+    batch_size: int = 2  # per process
+    lr: float = 2e-4
+    weight_decay: float = 1e-5
+    milestones: tuple[int, ...] = (10, 20, 30)  # epochs
+    gamma: float = 0.2
+    window_us: int = 20_000
+    bins: int = 8
+    crop: tuple[int, int] | None = None  # (height, width) random crops
+    flip: bool = False
+    seed: int = 0
+    log_every: int = 10
+    val_every: int = 1000
+    val_windows: int = 8
+    checkpoint_every: int = 500
+    amp: bool = True  # mixed precision, on CUDA only
+    num_workers: int = 0
+    device: str = "auto"
+    data: str = ""  # description of the training data, for the model card
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
+        """Build from a dict (e.g. ``config.json``), rejecting unknown keys."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise EdeflareError(f"unknown training options {unknown}; known: {sorted(known)}")
+        data = dict(data)
+        for key in ("milestones", "crop"):
+            if data.get(key) is not None:
+                data[key] = tuple(int(v) for v in data[key])
+        return cls(**data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form."""
+        return dataclasses.asdict(self)
+
+    def lr_at(self, iteration: int, epoch_len: int) -> float:
+        """Learning rate at ``iteration`` (MultiStepLR over epochs, without state)."""
+        epoch = iteration // max(1, epoch_len)
+        return self.lr * self.gamma ** sum(epoch >= m for m in self.milestones)
+
+
+# Options that do not change what is learned up to a given iteration: a resumed run may change them.
+_FREE_ON_RESUME = frozenset(
+    {
+        "iterations",
+        "log_every",
+        "val_every",
+        "val_windows",
+        "checkpoint_every",
+        "num_workers",
+        "device",
+        "data",
+    }
+)
+
+TRAIN_PRESETS: dict[str, TrainConfig] = {
+    "paper": TrainConfig(),
+    "cpu": TrainConfig(
+        preset="unet2d.lite",
+        iterations=3000,
+        batch_size=8,
+        lr=1e-3,
+        milestones=(),
+        crop=(128, 128),
+        flip=True,
+        val_every=500,
+        checkpoint_every=250,
+    ),
+}
+"""``paper``: Appendix D's configuration; ``cpu``: a light preset for 2-core machines."""
+
+
+@dataclass
+class _Dist:
+    world: int = 1
+    rank: int = 0
+    local_rank: int = 0
+
+    @property
+    def main(self) -> bool:
+        return self.rank == 0
+
+
+def _dist_env() -> _Dist:
+    env = _Dist(
+        int(os.environ.get("WORLD_SIZE", "1")),
+        int(os.environ.get("RANK", "0")),
+        int(os.environ.get("LOCAL_RANK", "0")),
+    )
+    if env.world > 1 and not dist.is_initialized():
+        dist.init_process_group(backend="nccl" if torch.cuda.is_available() else "gloo")
+    return env
+
+
+def _device(config: TrainConfig, env: _Dist) -> torch.device:
+    if config.device != "auto":
+        return torch.device(config.device)
+    if torch.cuda.is_available():
+        return torch.device("cuda", env.local_rank)
+    return torch.device("cpu")
+
+
+def _batches(
+    n_items: int, config: TrainConfig, env: _Dist, start: int
+) -> Iterator[tuple[int, list[tuple[int, int]]]]:
+    """``(iteration, [(index, epoch), ...])`` of this rank from iteration ``start`` on."""
+    global_batch = config.batch_size * env.world
+    epoch_len = n_items // global_batch
+    perm_epoch, perm = -1, np.empty(0, dtype=np.int64)
+    for it in range(start, config.iterations):
+        epoch, k = divmod(it, epoch_len)
+        if epoch != perm_epoch:
+            perm = np.random.default_rng((config.seed, epoch)).permutation(n_items)
+            perm_epoch = epoch
+        chunk = perm[k * global_batch : (k + 1) * global_batch]
+        mine = chunk[env.rank * config.batch_size : (env.rank + 1) * config.batch_size]
+        yield it, [(int(i), epoch) for i in mine]
+
+
+def _stack(pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[torch.Tensor, torch.Tensor]:
+    xs, ys = zip(*pairs, strict=True)
+    return torch.from_numpy(np.stack(xs)), torch.from_numpy(np.stack(ys))
+
+
+class _BatchPlan:
+    """The batches of this rank from ``start`` on, as a DataLoader ``batch_sampler``."""
+
+    def __init__(self, n_items: int, config: TrainConfig, env: _Dist, start: int) -> None:
+        self.args = (n_items, config, env, start)
+        self.length = max(0, config.iterations - start)
+
+    def __iter__(self) -> Iterator[list[tuple[int, int]]]:
+        return (items for _, items in _batches(*self.args))
+
+    def __len__(self) -> int:
+        return self.length
+
+
+def _loader(dataset: PairedWindows, config: TrainConfig, env: _Dist, start: int) -> Iterator:
+    """Yield ``(iteration, (x, y))``; with workers, windows are read in background processes."""
+    plan = _BatchPlan(len(dataset), config, env, start)
+    if config.num_workers > 0:
+        batches = torch.utils.data.DataLoader(
+            dataset,
+            batch_sampler=plan,
+            num_workers=config.num_workers,
+            collate_fn=_stack,
+            persistent_workers=False,
+        )
+    else:
+        batches = (_stack([dataset[item] for item in items]) for items in plan)
+    return zip(range(start, config.iterations), batches, strict=False)
+
+
+def _truncate_csv(path: Path, iteration: int) -> None:
+    """Keep the header and the rows up to ``iteration`` (a resumed run rewrites the rest)."""
+    if not path.exists():
+        return
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    kept = rows[:1] + [r for r in rows[1:] if r and int(r[0]) <= iteration]
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
+        csv.writer(f).writerows(kept)
+
+
+def _append_csv(path: Path, header: Sequence[str], row: Sequence[object]) -> None:
+    new = not path.exists()
+    with open(path, "a", newline="") as f:
+        writer = csv.writer(f)
+        if new:
+            writer.writerow(header)
+        writer.writerow(row)
+
+
+def _save_checkpoint(
+    path: Path,
+    model: torch.nn.Module,
+    opt: torch.optim.Optimizer,
+    iteration: int,
+    config: TrainConfig,
+) -> None:
+    state = {
+        "model": model.state_dict(),
+        "optimizer": opt.state_dict(),
+        "iteration": iteration,
+        "config": json.dumps(config.to_dict()),
+        "torch_rng": torch.get_rng_state(),
+    }
+    with atomic_path(path) as tmp:
+        torch.save(state, tmp)
+
+
+def _validate(
+    model: torch.nn.Module, dataset: PairedWindows, config: TrainConfig, device: torch.device
+) -> dict[str, float]:
+    """Voxel MSE of the model and of the identity on evenly spaced windows, plus event metrics."""
+    from .io.dsec import DsecReader
+    from .metrics import segment_metrics
+    from .voxel import decode
+
+    n = len(dataset)
+    picks = np.unique(np.linspace(0, n - 1, min(n, config.val_windows)).round().astype(int))
+    sums = {"val_mse": 0.0, "input_mse": 0.0, "chamfer": 0.0, "r_f1": 0.0}
+    defined = 0
+    model.eval()
+    with torch.no_grad():
+        for i in picks:
+            x, y = dataset.grids(int(i))
+            out = model(torch.from_numpy(x)[None, None].to(device))[0, 0].float().cpu().numpy()
+            sums["val_mse"] += float(np.mean((out - y) ** 2))
+            sums["input_mse"] += float(np.mean((x - y) ** 2))
+            ref = dataset.windows[int(i)]
+            with DsecReader(ref.path, group=f"{dataset.groups[1]}/events") as reader:
+                gt = reader.read_time(ref.start_us, ref.start_us + config.window_us)
+            pred = decode(out, ref.start_us, config.window_us, rng=int(i))
+            m = segment_metrics(
+                gt, pred, dataset.sensor_size, ref.start_us, config.window_us, bins=config.bins
+            )
+            sums["r_f1"] += m.r_f1
+            if not math.isnan(m.chamfer):
+                sums["chamfer"] += m.chamfer
+                defined += 1
+    model.train()
+    result = {k: v / len(picks) for k, v in sums.items() if k != "chamfer"}
+    result["chamfer"] = sums["chamfer"] / defined if defined else math.nan
+    return result
+
+
+def train(
+    config: TrainConfig,
+    train_paths: Sequence[str | os.PathLike[str]],
+    out_dir: str | os.PathLike[str],
+    *,
+    val_paths: Sequence[str | os.PathLike[str]] | None = None,
+    command: str = "",
+    progress: bool = True,
+) -> Path:
+    """Train (or resume) a model; return the path of the final ``model.safetensors``.
+
+    ``out_dir`` receives ``config.json``, ``checkpoint.pt`` (latest, atomic),
+    ``train_log.csv``, ``val_log.csv``, ``best.safetensors`` (lowest
+    validation MSE) and ``model.safetensors`` (last iteration). If
+    ``checkpoint.pt`` exists the run resumes from it; the configuration must
+    then equal the saved one.
+    """
+    get_preset(config.preset)
+    env = _dist_env()
+    device = _device(config, env)
+    out = Path(out_dir)
+    torch.manual_seed(config.seed)
+    train_set = PairedWindows(
+        train_paths,
+        window_us=config.window_us,
+        bins=config.bins,
+        crop=config.crop,
+        flip=config.flip,
+        seed=config.seed,
+    )
+    val_set = (
+        PairedWindows(val_paths, window_us=config.window_us, bins=config.bins)
+        if val_paths
+        else None
+    )
+    global_batch = config.batch_size * env.world
+    if len(train_set) < global_batch:
+        raise EdeflareError(
+            f"{len(train_set)} training windows are fewer than one global batch ({global_batch})"
+        )
+    epoch_len = len(train_set) // global_batch
+    model = create_model(config.preset).to(device)
+    opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    ckpt_path = out / "checkpoint.pt"
+    start = 0
+    if env.main:
+        out.mkdir(parents=True, exist_ok=True)
+    if ckpt_path.exists():
+        state = torch.load(ckpt_path, map_location=device, weights_only=True)
+        saved = TrainConfig.from_dict(json.loads(state["config"]))
+        changed = sorted(
+            k
+            for k, v in saved.to_dict().items()
+            if k not in _FREE_ON_RESUME and v != getattr(config, k)
+        )
+        if changed:
+            raise EdeflareError(
+                f"{ckpt_path}: was written with other values of {changed}; "
+                "use a new output folder (only the iteration count and logging may change)"
+            )
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["optimizer"])
+        torch.set_rng_state(state["torch_rng"])
+        start = int(state["iteration"])
+    if env.main:
+        (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
+        for name in ("train_log.csv", "val_log.csv"):
+            _truncate_csv(out / name, start)
+    net = model
+    if env.world > 1:
+        net = DistributedDataParallel(
+            model, device_ids=[device.index] if device.type == "cuda" else None
+        )
+    use_amp = config.amp and device.type == "cuda"
+    scaler = torch.amp.GradScaler("cuda", enabled=use_amp)
+    model.train()
+    best = math.inf
+    t0 = time.perf_counter()
+    bar = tqdm(
+        total=config.iterations,
+        initial=start,
+        unit="it",
+        disable=None if progress and env.main else True,
+    )
+    for it, batch in _loader(train_set, config, env, start):
+        lr = config.lr_at(it, epoch_len)
+        for group in opt.param_groups:
+            group["lr"] = lr
+        x, y = (t.to(device, non_blocking=True) for t in batch)
+        with torch.autocast(device_type=device.type, enabled=use_amp):
+            loss = torch.nn.functional.mse_loss(net(x), y)
+        opt.zero_grad(set_to_none=True)
+        scaler.scale(loss).backward()
+        scaler.step(opt)
+        scaler.update()
+        done = it + 1
+        bar.update(1)
+        if env.main and (done % config.log_every == 0 or done == config.iterations):
+            bar.set_postfix(loss=f"{loss.item():.4g}", lr=f"{lr:.2g}")
+            _append_csv(
+                out / "train_log.csv",
+                ["iteration", "epoch", "lr", "loss", "seconds"],
+                [done, it // epoch_len, lr, loss.item(), round(time.perf_counter() - t0, 3)],
+            )
+        if (
+            val_set is not None
+            and env.main
+            and (done % config.val_every == 0 or done == config.iterations)
+        ):
+            scores = _validate(model, val_set, config, device)
+            _append_csv(out / "val_log.csv", ["iteration", *scores], [done, *scores.values()])
+            if scores["val_mse"] < best:
+                best = scores["val_mse"]
+                save_model(out / "best.safetensors", model, _card(config, command, scores, done))
+        if done % config.checkpoint_every == 0 or done == config.iterations:
+            if env.main:
+                _save_checkpoint(ckpt_path, model, opt, done, config)
+            if env.world > 1:
+                dist.barrier()
+    bar.close()
+    final = out / "model.safetensors"
+    if env.main:
+        save_model(final, model, _card(config, command, {}, config.iterations))
+    if env.world > 1:
+        dist.barrier()
+    return final
+
+
+def _card(
+    config: TrainConfig, command: str, metrics: dict[str, float], iteration: int
+) -> ModelCard:
+    return ModelCard(
+        preset=config.preset,
+        bins=config.bins,
+        window_us=config.window_us,
+        command=command,
+        data=config.data,
+        seed=config.seed,
+        metrics={
+            **{k: (None if math.isnan(v) else v) for k, v in metrics.items()},
+            "iteration": iteration,
+        },
+        notes=json.dumps(config.to_dict()),
+    )

@@ -1,0 +1,81 @@
+"""Paired voxel windows: alignment, exact grids, seeded crops and flips."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import random_events
+from edeflare.data.pairs import PairedWindows, list_sequences, sequence_windows
+from edeflare.errors import EventFileError
+from edeflare.io.dsec import write_dsec_groups
+from edeflare.voxel import encode
+
+
+def _sequence(path, rng, size=(16, 12), t0=1_000_000, span=60_000, attrs=None):
+    inp = random_events(rng, 400, size, t0=t0, span_us=span)
+    gt = inp[rng.random(inp.size) < 0.5]
+    write_dsec_groups(path, {"input": inp, "gt": gt}, size, attrs)
+    return inp, gt
+
+
+def test_windows_are_aligned_and_grids_exact(tmp_path, rng):
+    inp, gt = _sequence(tmp_path / "a.h5", rng, t0=1_005_000)
+    ds = PairedWindows([tmp_path / "a.h5"])
+    starts = [w.start_us for w in ds.windows]
+    assert starts[0] == 1_000_000 and np.all(np.diff(starts) == 20_000)
+    assert starts[-1] <= int(inp["t"][-1]) < starts[-1] + 20_000
+    x, y = ds[1]
+    sel = (inp["t"] >= 1_020_000) & (inp["t"] < 1_040_000)
+    np.testing.assert_array_equal(x[0], encode(inp[sel], (16, 12), 1_020_000, 20_000))
+    sel = (gt["t"] >= 1_020_000) & (gt["t"] < 1_040_000)
+    np.testing.assert_array_equal(y[0], encode(gt[sel], (16, 12), 1_020_000, 20_000))
+
+
+def test_span_attributes_define_the_windows(tmp_path, rng):
+    span = {"t_start_us": 0, "t_end_us": 100_000}
+    _sequence(tmp_path / "a.h5", rng, t0=0, span=30_000, attrs=span)
+    refs, size = sequence_windows([tmp_path / "a.h5"])
+    assert [r.start_us for r in refs] == [0, 20_000, 40_000, 60_000, 80_000] and size == (16, 12)
+
+
+def test_crops_and_flips_are_seeded_and_paired(tmp_path, rng):
+    _sequence(tmp_path / "a.h5", rng)
+    ds = PairedWindows([tmp_path / "a.h5"], crop=(8, 8), flip=True, seed=3)
+    full_x, full_y = ds.grids(0)
+    x, y = ds.item(0, epoch=0)
+    assert x.shape == (1, 8, 8, 8)
+    again = ds.item(0, epoch=0)
+    assert np.array_equal(again[0], x) and np.array_equal(again[1], y)
+    # input and target are cut and flipped identically: find the crop in the full grid
+    found = False
+    for flip_h in (False, True):
+        for flip_v in (False, True):
+            fx, fy = full_x, full_y
+            if flip_h:
+                fx, fy = fx[:, :, ::-1], fy[:, :, ::-1]
+            if flip_v:
+                fx, fy = fx[:, ::-1, :], fy[:, ::-1, :]
+            for top in range(12 - 8 + 1):
+                for left in range(16 - 8 + 1):
+                    if np.array_equal(
+                        fx[:, top : top + 8, left : left + 8], x[0]
+                    ) and np.array_equal(fy[:, top : top + 8, left : left + 8], y[0]):
+                        found = True
+    assert found
+    draws = {ds.item(0, epoch=e)[0].tobytes() for e in range(8)}
+    assert len(draws) > 1  # epochs draw different crops
+
+
+def test_bad_datasets(tmp_path, rng):
+    with pytest.raises(EventFileError, match="no such dataset folder"):
+        list_sequences(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(EventFileError, match="no sequence files"):
+        list_sequences(tmp_path / "empty")
+    _sequence(tmp_path / "a.h5", rng, size=(16, 12))
+    _sequence(tmp_path / "b.h5", rng, size=(20, 12))
+    with pytest.raises(EventFileError, match="differs"):
+        PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"])
+    with pytest.raises(ValueError, match="exceeds the sensor"):
+        PairedWindows([tmp_path / "a.h5"], crop=(13, 8))

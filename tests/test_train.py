@@ -1,0 +1,203 @@
+"""Training: the loss falls, resume is exact, DDP (gloo) matches one process."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from conftest import random_events
+from edeflare.errors import EdeflareError
+from edeflare.events import merge_events
+from edeflare.io.dsec import write_dsec_groups
+from edeflare.models.weights import load_model
+from edeflare.train import TrainConfig, train
+
+SIZE = (16, 12)
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    """Six 60 ms sequences where the input is the ground truth plus a flickering blob."""
+    rng = np.random.default_rng(5)
+    for split, n in (("train", 6), ("test", 1)):
+        (tmp_path / split).mkdir()
+        for k in range(n):
+            gt = random_events(rng, 300, SIZE, t0=0, span_us=60_000)
+            blob = random_events(rng, 600, (4, 4), t0=0, span_us=60_000)
+            blob["x"] += 10
+            blob["y"] += 6
+            streams = {"input": merge_events(gt, blob), "gt": gt}
+            span = {"t_start_us": 0, "t_end_us": 60_000}
+            write_dsec_groups(tmp_path / split / f"s{k}.h5", streams, SIZE, span)
+    return tmp_path
+
+
+def _config(**kw):
+    base = TrainConfig(
+        preset="unet2d.lite",
+        iterations=12,
+        batch_size=4,
+        lr=3e-3,
+        milestones=(),
+        log_every=1,
+        val_every=6,
+        val_windows=2,
+        checkpoint_every=4,
+        seed=1,
+    )
+    return dataclasses.replace(base, **kw)
+
+
+def _paths(root, split):
+    return sorted((root / split).glob("*.h5"))
+
+
+def _weights(path):
+    return load_model(path)[0].state_dict()
+
+
+def _log(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_training_lowers_the_loss_and_writes_everything(dataset, tmp_path):
+    out = tmp_path / "run"
+    final = train(
+        _config(iterations=30),
+        _paths(dataset, "train"),
+        out,
+        val_paths=_paths(dataset, "test"),
+        progress=False,
+    )
+    rows = _log(out / "train_log.csv")
+    assert [int(r["iteration"]) for r in rows] == list(range(1, 31))
+    first = np.mean([float(r["loss"]) for r in rows[:5]])
+    last = np.mean([float(r["loss"]) for r in rows[-5:]])
+    assert last < 0.8 * first
+    val = _log(out / "val_log.csv")
+    assert [int(r["iteration"]) for r in val] == [6, 12, 18, 24, 30]
+    assert float(val[-1]["val_mse"]) < float(val[-1]["input_mse"])  # beats the identity
+    _, card = load_model(final)
+    assert card.preset == "unet2d.lite" and card.metrics["iteration"] == 30
+    assert (out / "best.safetensors").exists() and (out / "config.json").exists()
+
+
+def test_resume_is_exact_and_logs_are_not_duplicated(dataset, tmp_path):
+    cfg = _config()
+    straight = train(cfg, _paths(dataset, "train"), tmp_path / "a", progress=False)
+    # Stop after 8 iterations (a checkpoint at 8), then rerun to 12 in the same folder.
+    train(
+        dataclasses.replace(cfg, iterations=8),
+        _paths(dataset, "train"),
+        tmp_path / "b",
+        progress=False,
+    )
+    # Simulate a kill after iteration 10: log rows beyond the checkpoint exist.
+    with open(tmp_path / "b" / "train_log.csv", "a") as f:
+        f.write("9,0,0.003,1.0,0\n10,0,0.003,1.0,0\n")
+    resumed = train(cfg, _paths(dataset, "train"), tmp_path / "b", progress=False)
+    a, b = _weights(straight), _weights(resumed)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    iterations = [int(r["iteration"]) for r in _log(tmp_path / "b" / "train_log.csv")]
+    assert iterations == list(range(1, 13))
+
+
+def test_resume_refuses_another_configuration(dataset, tmp_path):
+    train(_config(iterations=4), _paths(dataset, "train"), tmp_path / "r", progress=False)
+    with pytest.raises(EdeflareError, match=r"other values of \['lr'\]"):
+        train(
+            _config(iterations=8, lr=1e-4), _paths(dataset, "train"), tmp_path / "r", progress=False
+        )
+
+
+def test_data_loader_workers_give_the_same_model(dataset, tmp_path):
+    a = train(_config(iterations=4), _paths(dataset, "train"), tmp_path / "a", progress=False)
+    b = train(
+        _config(iterations=4, num_workers=2),
+        _paths(dataset, "train"),
+        tmp_path / "b",
+        progress=False,
+    )
+    wa, wb = _weights(a), _weights(b)
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+
+
+def test_too_little_data_is_a_clear_error(dataset, tmp_path):
+    with pytest.raises(EdeflareError, match="fewer than one global batch"):
+        train(_config(batch_size=64), _paths(dataset, "train"), tmp_path / "x", progress=False)
+
+
+@pytest.mark.slow
+def test_ddp_with_two_gloo_processes_matches_one_process(dataset, tmp_path):
+    common = [
+        str(dataset),
+        "--config",
+        "cpu",
+        "--preset",
+        "unet2d.lite",
+        "--iterations",
+        "4",
+        "--lr",
+        "0.003",
+        "--seed",
+        "1",
+        "--val-every",
+        "100",
+        "--checkpoint-every",
+        "100",
+    ]
+    crop = ["--crop", "8x8"]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "edeflare",
+            "train",
+            *common,
+            *crop,
+            "--batch-size",
+            "4",
+            "--out",
+            str(tmp_path / "one"),
+        ],
+        check=True,
+        env=env,
+        capture_output=True,
+    )
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "torch.distributed.run",
+            "--standalone",
+            "--nproc_per_node",
+            "2",
+            "-m",
+            "edeflare",
+            "train",
+            *common,
+            *crop,
+            "--batch-size",
+            "2",
+            "--out",
+            str(tmp_path / "two"),
+        ],
+        check=True,
+        env=env,
+        capture_output=True,
+    )
+    a = _weights(tmp_path / "one" / "model.safetensors")
+    b = _weights(tmp_path / "two" / "model.safetensors")
+    for k in a:
+        torch.testing.assert_close(a[k], b[k], rtol=1e-4, atol=1e-5)
+    moved = any(not torch.equal(a[k], torch.zeros_like(a[k])) for k in a if "final" in k)
+    assert moved  # training did change the zero-initialised last layer
