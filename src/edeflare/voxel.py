@@ -314,23 +314,24 @@ def _decode_by_argsort(
 
 
 @numba.njit(cache=True, nogil=True)
-def _keep_mask(cells, p, order, budget_on, budget_off):  # pragma: no cover - compiled
-    """Keep input events while their cell still has budget for their polarity.
+def _keep_mask(cells, p, order, remove_on, remove_off):  # pragma: no cover - compiled
+    """Drop input events while their cell still has to lose events of their polarity.
 
-    Events are visited in the random ``order``, so the kept ones are a
-    uniform random subset of each cell's events of that polarity.
+    Events are visited in the random ``order``, so the dropped ones are a
+    uniform random subset of each cell's events of that polarity. The
+    budgets left over (nothing more to drop) are updated in place.
     """
-    keep = np.zeros(cells.size, dtype=np.bool_)
+    keep = np.ones(cells.size, dtype=np.bool_)
     for k in range(order.size):
         i = order[k]
         c = cells[i]
         if p[i]:
-            if budget_on[c] > 0:
-                budget_on[c] -= 1
-                keep[i] = True
-        elif budget_off[c] > 0:
-            budget_off[c] -= 1
-            keep[i] = True
+            if remove_on[c] > 0:
+                remove_on[c] -= 1
+                keep[i] = False
+        elif remove_off[c] > 0:
+            remove_off[c] -= 1
+            keep[i] = False
     return keep
 
 
@@ -341,16 +342,17 @@ def decode_keep(
     window_us: int,
     rng: np.random.Generator | int | None = None,
 ) -> np.ndarray:
-    """Decode a restored grid by keeping the input's own events where the grid keeps them.
+    """Decode a restored grid as the smallest edit of the input events.
 
-    For each cell the rounded restored value ``n`` is a budget of ``|n|``
-    events of polarity ``sgn(n)``: input events of that polarity in that cell
-    are kept (a seeded uniform random subset when there are more than the
-    budget), input events of the other polarity are dropped, and only the
-    budget left over is synthesised as :func:`decode` does. Kept events keep
-    their real timestamps, so a model that removes flare and leaves the rest
-    returns the rest exactly; ``encode`` of the result still equals
-    ``rint(voxel)``.
+    Per cell, with ``m`` the input's net count (ON minus OFF) and ``n`` the
+    rounded restored value, ``d = n - m`` events must change: for ``d < 0``
+    up to ``|d|`` of the cell's ON events are removed (a seeded uniform random
+    subset) and any remainder is added as OFF events; for ``d > 0`` OFF events
+    are removed first and ON events added. Added events get uniform times in
+    the cell's bin, as in :func:`decode`. Every other input event is kept with
+    its real timestamp: a cell the model leaves alone keeps all its events,
+    even ON/OFF pairs that cancel in the signed grid, and
+    ``encode(result) == rint(voxel)`` still holds.
 
     Parameters
     ----------
@@ -364,7 +366,7 @@ def decode_keep(
     >>> from edeflare.events import make_events
     >>> ev = make_events([3, 7, 12], [0, 0, 1], [0, 0, 0], [1, 1, 0])
     >>> grid = encode(ev, (2, 1), 0, 16, bins=2)
-    >>> grid[0, 0, 0] = 1            # the model keeps one of the two ON events
+    >>> grid[0, 0, 0] = 1            # the model removes one of the two ON events
     >>> out = decode_keep(grid, ev, 0, 16, rng=0)
     >>> len(out), int(out["t"][-1])  # the OFF event keeps its own timestamp
     (2, 12)
@@ -377,15 +379,17 @@ def decode_keep(
         raise EventsError("voxel contains NaN or infinity")
     _checked(events, (width, height), window_start_us, window_us, bins)
     rng = np.random.default_rng(rng)
-    counts = np.rint(voxel).astype(np.int64).reshape(-1)
-    budget_on = np.maximum(counts, 0)
-    budget_off = np.maximum(-counts, 0)
+    target = np.rint(voxel).astype(np.int64).reshape(-1)
+    have = encode(events, (width, height), window_start_us, window_us, bins)
+    delta = target - have.astype(np.int64).reshape(-1)
+    remove_on = np.maximum(-delta, 0)
+    remove_off = np.maximum(delta, 0)
     b = ((events["t"] - int(window_start_us)) * bins) // int(window_us)
     cells = (b * height + events["y"].astype(np.int64)) * width + events["x"]
     order = rng.permutation(events.size)
-    keep = _keep_mask(cells, events["p"], order, budget_on, budget_off)
-    leftover = (budget_on - budget_off).reshape(voxel.shape)
-    added = decode(leftover, window_start_us, window_us, rng)
+    keep = _keep_mask(cells, events["p"], order, remove_on, remove_off)
+    # What could not be removed is added with the other polarity.
+    added = decode((remove_off - remove_on).reshape(voxel.shape), window_start_us, window_us, rng)
     kept = events[keep]
     if not added.size:
         return kept

@@ -1,0 +1,145 @@
+"""De-flaring event windows with a trained model: encode, restore, decode.
+
+Each window ``[start, start + window)`` is encoded into a voxel grid, a batch
+of grids goes through the network (on CUDA when present), and each restored
+grid is decoded back to events with one of two decoders:
+
+- ``"paper"``: round each cell, emit ``|n|`` events at uniform random times in
+  the cell's bin (Appendix C; :func:`edeflare.voxel.decode`);
+- ``"keep"``: keep the input's own events (with their real timestamps) where
+  the restored grid keeps them and synthesise only what the grid adds
+  (:func:`edeflare.voxel.decode_keep`).
+
+Decoding draws come from a generator seeded by ``(seed, window start)``, so
+the output does not depend on batching or on where a stream is resumed.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..errors import EdeflareError
+from ..events import SensorSize, check_events
+from ..voxel import decode, decode_keep, encode
+from .weights import ModelCard, load_model
+
+__all__ = ["DECODERS", "ModelDeflarer", "bundled_weights"]
+
+DECODERS = ("keep", "paper")
+
+_ASSETS = Path(__file__).resolve().parent.parent / "assets"
+
+
+def bundled_weights(name: str = "default") -> Path:
+    """Path of a model shipped inside the package (``assets/<name>.safetensors``)."""
+    path = _ASSETS / f"{name}.safetensors"
+    if not path.is_file():
+        shipped = sorted(p.stem for p in _ASSETS.glob("*.safetensors")) if _ASSETS.is_dir() else []
+        raise EdeflareError(f"no bundled model {name!r}; shipped: {shipped or 'none yet'}")
+    return path
+
+
+def _device(device: str) -> torch.device:
+    if device == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(device)
+
+
+class ModelDeflarer:
+    """Apply a trained E-DeflareNet to event windows.
+
+    Parameters
+    ----------
+    weights : path-like
+        A ``.safetensors`` file written by :func:`edeflare.models.weights.save_model`.
+    decoder : {"keep", "paper"}
+    device : str
+        ``"auto"`` (CUDA if available), ``"cpu"``, ``"cuda:1"``...
+    batch_windows : int
+        Windows per forward pass.
+    seed : int
+        Seeds the decoding draws (with each window's start).
+    """
+
+    def __init__(
+        self,
+        weights: str | os.PathLike[str],
+        *,
+        decoder: str = "keep",
+        device: str = "auto",
+        batch_windows: int = 4,
+        seed: int = 0,
+    ) -> None:
+        if decoder not in DECODERS:
+            raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
+        if batch_windows < 1:
+            raise EdeflareError(f"batch_windows must be at least 1, got {batch_windows}")
+        self.device = _device(device)
+        model, card = load_model(weights, self.device)
+        self.model: torch.nn.Module = model
+        self.card: ModelCard = card
+        self.decoder = decoder
+        self.batch_windows = int(batch_windows)
+        self.seed = int(seed)
+
+    @property
+    def window_us(self) -> int:
+        """Window length the model was trained on (µs)."""
+        return self.card.window_us
+
+    def _restore(self, grids: list[np.ndarray]) -> list[np.ndarray]:
+        x = torch.from_numpy(np.stack(grids)[:, None]).to(self.device)
+        with torch.no_grad():
+            y = self.model(x)[:, 0].float().cpu().numpy()
+        return list(y)
+
+    def _decode(self, grid: np.ndarray, events: np.ndarray, start: int) -> np.ndarray:
+        rng = np.random.default_rng((self.seed, int(start)))
+        if self.decoder == "keep":
+            return decode_keep(grid, events, start, self.window_us, rng)
+        return decode(grid, start, self.window_us, rng)
+
+    def windows(
+        self, windows: Iterable[tuple[int, np.ndarray]], sensor_size: SensorSize
+    ) -> Iterator[tuple[int, np.ndarray]]:
+        """De-flare ``(window_start_us, events)`` pairs, in order, batching the network calls.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from edeflare.models import create_model
+        >>> from edeflare.models.weights import ModelCard, save_model
+        >>> from edeflare.events import make_events
+        >>> p = pathlib.Path(tempfile.mkdtemp()) / "m.safetensors"
+        >>> save_model(p, create_model("unet2d.lite"), ModelCard(preset="unet2d.lite"))
+        >>> ev = make_events([10, 30_000], [1, 2], [1, 2], [1, 0])
+        >>> out = ModelDeflarer(p).windows([(0, ev[:1]), (20_000, ev[1:])], (4, 4))
+        >>> [(s, e["t"].tolist()) for s, e in out]   # an untrained model is the identity
+        [(0, [10]), (20000, [30000])]
+        """
+        batch: list[tuple[int, np.ndarray]] = []
+        for start, events in windows:
+            check_events(events, sensor_size)
+            batch.append((int(start), events))
+            if len(batch) == self.batch_windows:
+                yield from self._run(batch, sensor_size)
+                batch = []
+        if batch:
+            yield from self._run(batch, sensor_size)
+
+    def _run(
+        self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
+    ) -> Iterator[tuple[int, np.ndarray]]:
+        bins = self.card.bins
+        grids = [encode(ev, sensor_size, s, self.window_us, bins) for s, ev in batch]
+        for (start, events), restored in zip(batch, self._restore(grids), strict=True):
+            yield start, self._decode(restored, events, start)
+
+    def __call__(self, events: np.ndarray, sensor_size: SensorSize, start_us: int) -> np.ndarray:
+        """De-flare one window starting at ``start_us``."""
+        return next(iter(self.windows([(start_us, events)], sensor_size)))[1]

@@ -1,0 +1,100 @@
+"""Model inference: both decoders, batching independence, determinism, bad weights."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import random_events, same_events
+from edeflare.errors import EdeflareError
+from edeflare.events import iter_time_windows
+from edeflare.models import create_model
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.weights import ModelCard, WeightsError, save_model
+from edeflare.voxel import decode_keep, encode
+
+SIZE = (24, 16)
+
+
+@pytest.fixture
+def identity_weights(tmp_path):
+    path = tmp_path / "id.safetensors"
+    save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
+    return path
+
+
+def test_identity_model_with_keep_decoder_returns_the_input_exactly(identity_weights, rng):
+    ev = random_events(rng, 2000, SIZE, t0=0, span_us=100_000)
+    deflarer = ModelDeflarer(identity_weights, decoder="keep", batch_windows=3)
+    out = list(deflarer.windows(iter_time_windows(ev, 20_000), SIZE))
+    assert [s for s, _ in out] == [0, 20_000, 40_000, 60_000, 80_000]
+    assert same_events(np.concatenate([e for _, e in out]), ev)
+
+
+def test_paper_decoder_keeps_cell_counts_not_times(identity_weights, rng):
+    ev = random_events(rng, 2000, SIZE, t0=0, span_us=20_000)
+    out = ModelDeflarer(identity_weights, decoder="paper")(ev, SIZE, 0)
+    np.testing.assert_array_equal(
+        encode(out, SIZE, 0, 20_000), np.rint(encode(ev, SIZE, 0, 20_000))
+    )
+    assert not np.array_equal(out["t"], ev["t"])
+
+
+def test_batching_and_resuming_do_not_change_the_output(identity_weights, rng):
+    ev = random_events(rng, 3000, SIZE, t0=0, span_us=100_000)
+    wins = list(iter_time_windows(ev, 20_000))
+    one = list(
+        ModelDeflarer(identity_weights, decoder="paper", batch_windows=1).windows(wins, SIZE)
+    )
+    four = list(
+        ModelDeflarer(identity_weights, decoder="paper", batch_windows=4).windows(wins, SIZE)
+    )
+    tail = list(ModelDeflarer(identity_weights, decoder="paper").windows(wins[2:], SIZE))
+    assert all(same_events(a, b) for (_, a), (_, b) in zip(one, four, strict=True))
+    assert all(same_events(a, b) for (_, a), (_, b) in zip(one[2:], tail, strict=True))
+
+
+def test_keep_decoder_keeps_a_subset_and_adds_only_what_the_grid_adds(rng):
+    ev = random_events(rng, 3000, SIZE, t0=0, span_us=20_000)
+    grid = encode(ev, SIZE, 0, 20_000)
+    restored = grid.copy()
+    restored[:, :8, :] = 0  # the model removes everything in the top rows
+    restored[:, 15, 23] += 3  # and adds three ON events in one pixel per bin
+    out = decode_keep(restored, ev, 0, 20_000, rng=1)
+    np.testing.assert_array_equal(encode(out, SIZE, 0, 20_000), restored)
+    keys = set(map(tuple, ev[["t", "x", "y", "p"]].tolist()))
+    kept = [tuple(e) for e in out[["t", "x", "y", "p"]].tolist() if not (e[1] == 23 and e[2] == 15)]
+    assert all(k in keys for k in kept)  # every event elsewhere is an input event
+    # In the cleared rows only ON/OFF pairs that cancel in the signed grid survive.
+    from edeflare.voxel import encode_polarity
+
+    pol = encode_polarity(out, SIZE, 0, 20_000)[:, :, :8, :]
+    np.testing.assert_array_equal(pol[0], pol[1])
+    pol_in = encode_polarity(ev, SIZE, 0, 20_000)[:, :, :8, :]
+    assert (out["y"] < 8).sum() == 2 * np.minimum(pol_in[0], pol_in[1]).sum()
+    again = decode_keep(restored, ev, 0, 20_000, rng=1)
+    assert same_events(out, again)
+
+
+def test_keep_decoder_thins_cells_uniformly(rng):
+    # 400 ON events in one cell; the grid keeps 100: a random subset spread over the bin.
+    t = np.sort(rng.integers(0, 2500, 400))
+    from edeflare.events import make_events
+
+    ev = make_events(t, np.zeros(400, int), np.zeros(400, int), np.ones(400, int))
+    grid = encode(ev, (1, 1), 0, 20_000)
+    grid[0, 0, 0] = 100
+    out = decode_keep(grid, ev, 0, 20_000, rng=0)
+    assert len(out) == 100 and np.isin(out["t"], t).all()
+    assert 800 < out["t"].mean() < 1700  # not the first 100 events (mean ~ 300)
+
+
+def test_bad_configuration(identity_weights, tmp_path):
+    with pytest.raises(EdeflareError, match="decoder must be one of"):
+        ModelDeflarer(identity_weights, decoder="nearest")
+    with pytest.raises(EdeflareError, match="batch_windows"):
+        ModelDeflarer(identity_weights, batch_windows=0)
+    with pytest.raises(WeightsError, match="no such weights file"):
+        ModelDeflarer(tmp_path / "missing.safetensors")
+    with pytest.raises(EdeflareError, match="no bundled model 'nope'"):
+        bundled_weights("nope")
