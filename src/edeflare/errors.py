@@ -9,7 +9,13 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["EdeflareError", "EventFileError", "EventsError", "UnknownFormatError"]
+__all__ = [
+    "EdeflareError",
+    "EventFileError",
+    "EventsError",
+    "ParameterError",
+    "UnknownFormatError",
+]
 
 
 class EdeflareError(Exception):
@@ -18,6 +24,10 @@ class EdeflareError(Exception):
 
 class EventsError(EdeflareError, ValueError):
     """An event array is malformed: wrong dtype, unsorted, out of range, NaN..."""
+
+
+class ParameterError(EdeflareError, ValueError):
+    """A method or option was given an unknown name or an invalid value."""
 
 
 class EventFileError(EdeflareError, ValueError):
