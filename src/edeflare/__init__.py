@@ -23,7 +23,14 @@ import numba as _numba
 if "NUMBA_THREADING_LAYER" not in _os.environ:
     _numba.config.THREADING_LAYER = "workqueue"
 
-from .errors import EdeflareError, EventFileError, EventsError, UnknownFormatError
+from .deflare import create_method, deflare, deflare_file, list_methods
+from .errors import (
+    EdeflareError,
+    EventFileError,
+    EventsError,
+    ParameterError,
+    UnknownFormatError,
+)
 from .events import (
     EVENT_DTYPE,
     center_crop,
@@ -45,16 +52,21 @@ __all__ = [
     "EdeflareError",
     "EventFileError",
     "EventsError",
+    "ParameterError",
     "UnknownFormatError",
     "__version__",
     "center_crop",
     "check_events",
+    "create_method",
     "crop",
     "decode",
+    "deflare",
+    "deflare_file",
     "encode",
     "encode_polarity",
     "iter_time_windows",
     "iter_windows",
+    "list_methods",
     "make_events",
     "merge_events",
     "open_events",
