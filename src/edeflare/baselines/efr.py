@@ -776,6 +776,22 @@ class EFRFilter:
             bound = min(bound, next_input_us)
         return bound
 
+    def pixel_state(self, x: int, y: int) -> tuple[list[list[tuple[int, float]]], float]:
+        """The queues q1..q4 of pixel ``(x, y)`` as ``(time, value)`` lists, and its accumulator.
+
+        For inspection and tests; queue order is front first.
+        """
+        width, height = self.sensor_size
+        if not (0 <= x < width and 0 <= y < height):
+            raise ParameterError(f"pixel ({x}, {y}) is not on the {width}x{height} sensor")
+        k = y * width + x
+        queues = []
+        for q in range(4):
+            base, cap, head, size = (int(v) for v in self._meta[k, q])
+            idx = [base + (head + i) % cap for i in range(size)]
+            queues.append([(int(self._pool_t[i]), float(self._pool_v[i])) for i in idx])
+        return queues, float(self._acc[k])
+
     @property
     def memory_bytes(self) -> int:
         """Bytes held by the filter state."""

@@ -261,6 +261,27 @@ class PFDFilter:
         """Process the next chunk; return the events kept (a new array)."""
         return events[self.mask(events)]
 
+    def pixel_state(self, x: int, y: int) -> dict[str, object]:
+        """The state of pixel ``(x, y)``: last ON/OFF/any times, stored polarity, flip times.
+
+        For inspection and tests. ``polarity`` is 0 (unset), 1 or -1; ``flips``
+        lists the buffered flip times, oldest first.
+        """
+        width, height = self.sensor_size
+        if not (0 <= x < width and 0 <= y < height):
+            raise ParameterError(f"pixel ({x}, {y}) is not on the {width}x{height} sensor")
+        k = y * width + x
+        head = int(self._flip_head[k])
+        order = [(head + j) % self.fifo_size for j in range(self.fifo_size)]
+        flips = [int(self._flips[k, j]) for j in order if self._flips[k, j] != _NEVER]
+        return {
+            "last_on": int(self._last_on[k]),
+            "last_off": int(self._last_off[k]),
+            "last_t": int(self._last_t[k]),
+            "polarity": int(self._stored[k]),
+            "flips": flips,
+        }
+
     @property
     def memory_bytes(self) -> int:
         """Bytes held by the filter state."""
