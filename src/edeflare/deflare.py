@@ -63,6 +63,8 @@ __all__ = [
 MethodFactory = Callable[..., "Method"]
 _REGISTRY: dict[str, MethodFactory] = {}
 _EMPTY = np.zeros(0, dtype=EVENT_DTYPE)
+# Held outputs are re-sorted once at least this many (and as many as already held) arrived.
+_REORDER_BATCH = 1 << 16
 
 
 # ---------------------------------------------------------------------------------------
@@ -537,10 +539,9 @@ class _Reorder:
     and counted.
     """
 
-    def __init__(self, streamer: Streamer, max_lag_us: int | None, batch: int = 1 << 16) -> None:
+    def __init__(self, streamer: Streamer, max_lag_us: int | None) -> None:
         self.streamer = streamer
         self.max_lag_us = max_lag_us
-        self.batch = batch
         self.held = _EMPTY  # sorted
         self.new: list[np.ndarray] = []
         self.n_new = 0
@@ -565,7 +566,8 @@ class _Reorder:
         if outputs.size:
             self.new.append(outputs)
             self.n_new += outputs.size
-        if self.n_new + self.held.size < self.batch:
+        # Release in batches at least as large as what is held: linear work overall.
+        if self.n_new < max(_REORDER_BATCH, self.held.size):
             return _EMPTY
         mark = self.streamer.safe_time_us(until_us)
         if self.max_lag_us is not None:
