@@ -65,6 +65,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size, sort_events
+from ._compiled import prefetch as _prefetch
 
 __all__ = ["EFRFilter", "efr", "efr_bias", "efr_delays"]
 
@@ -169,6 +170,7 @@ def _count_polarities(x, y, p, width, n_all, n_on):  # pragma: no cover - compil
 # compiled loops (numba's reference counting of reassigned arrays would cost 3-4x).
 
 _OK, _NEED_POOL, _NEED_OUT, _NEED_SCRATCH = 0, 1, 2, 3
+_AHEAD = 8  # events ahead whose pixel state is prefetched
 
 
 @numba.njit(cache=True, nogil=True)
@@ -464,7 +466,20 @@ def _efr_run(
     n_out,
 ):  # pragma: no cover - compiled
     """Events ``start..`` through the filter: ``(next event, n_out, status)``."""
-    for i in range(start, t.size):
+    n = t.size
+    meta_flat = meta.reshape(meta.size)
+    for i in range(start, n):
+        # Prefetch the pixel state of later events: their meta rows first, then (once
+        # those have arrived) the queue blocks they point to.
+        if i + _AHEAD < n:
+            kk = np.int64(y[i + _AHEAD]) * width + x[i + _AHEAD]
+            _prefetch(meta_flat, kk * 16)
+            _prefetch(acc, kk)
+        if i + _AHEAD // 2 < n:
+            kk = np.int64(y[i + _AHEAD // 2]) * width + x[i + _AHEAD // 2]
+            for q in range(4):
+                if meta[kk, q, _CAP] > 0:
+                    _prefetch(pool_t, np.int64(meta[kk, q, _BASE]) + meta[kk, q, _HEAD])
         k = np.int64(y[i]) * width + x[i]
         status, n_new = _efr_event(
             t[i],

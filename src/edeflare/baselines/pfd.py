@@ -41,6 +41,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..events import SensorSize, check_events, check_sensor_size
+from ._compiled import prefetch as _prefetch
 
 __all__ = ["PFDFilter", "pfd", "pfd_mask"]
 
@@ -73,7 +74,16 @@ def _pfd_run(
     keep,
 ):  # pragma: no cover - compiled
     fifo = flips.shape[1]
-    for i in range(t.size):
+    flat_flips = flips.reshape(flips.size)
+    n = t.size
+    for i in range(n):
+        if i + 8 < n:  # fetch the 3x3 neighbourhood of a later event meanwhile
+            kk = np.int64(y[i + 8]) * width + x[i + 8]
+            for row in (kk - width, kk, kk + width):
+                if 0 <= row < last_t.size:
+                    _prefetch(last_t, row)
+                    _prefetch(last_on if p[i + 8] else last_off, row)
+                    _prefetch(flat_flips, row * fifo)
         ti = t[i]
         xi = np.int64(x[i])
         yi = np.int64(y[i])
