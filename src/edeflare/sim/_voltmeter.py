@@ -102,18 +102,19 @@ def voltmeter_fast(prev, new, residual, state, t0, t1, k, mark):  # pragma: no c
     """First pass over every pixel, branch-free so that it vectorises.
 
     It settles the common case exactly as :func:`voltmeter_slow` would: the
-    ON barrier is certain (``P_on == 1`` in double precision), the ziggurat
-    takes its fast path, and no event happens before ``t1``. Then the
-    residual grows by ``v``, the state advances by two draws and ``prev``
+    barrier towards the drift is certain (``P_on`` is 1, or below 2**-54, in
+    double precision, so no polarity is drawn), the ziggurat takes its fast
+    path, and no event happens before ``t1``. Then the residual moves by
+    ``v`` towards that barrier, the state advances by two draws and ``prev``
     takes the new intensity, in place. Every other pixel is left untouched
     and marked for :func:`voltmeter_slow`, which redoes it from the same
     state with the same draws, so the split does not change a single result.
 
-    With ``a = z**2 sigma**2 / (eps mu)`` and ``w = 1 + a/2 + sqrt(a + a**2/4)``
+    With ``a = z**2 sigma**2 / (eps |mu|)`` and ``w = 1 + a/2 + sqrt(a + a**2/4)``
     the two Michael-Schucany-Haas roots are ``tau = m / w`` (taken with
-    probability ``w / (1 + w)``) and ``m w``, where ``m = eps / mu``. With
+    probability ``w / (1 + w)``) and ``m w``, where ``m = eps / |mu|``. With
     ``g = w`` or ``1 / w`` the voltage gathered until the next frame,
-    ``eps (t1 - t0) / tau``, is ``v = (t1 - t0) mu g``; an event happens iff
+    ``eps (t1 - t0) / tau``, is ``v = (t1 - t0) |mu| g``; an event happens iff
     ``v > eps``.
     """
     k1, k2, k3, k4, k5, k6 = k[0], k[1], k[2], k[3], k[4], k[5]
@@ -128,9 +129,12 @@ def voltmeter_fast(prev, new, residual, state, t0, t1, k, mark):  # pragma: no c
         sigma = (k3 * math.sqrt(avg)) * den + k6
         s2 = sigma * sigma
         r = residual[px]
-        a_on = 1.0 - r
-        ed = a_on * mu
-        simple = (mu > 0.0) & (2.0 * mu * (1.0 + r) > 40.0 * s2) & (ed > 0.0) & (s2 > 0.0)
+        up = mu > 0.0
+        drift = abs(mu)
+        eps = 1.0 - r if up else 1.0 + r  # distance to the barrier the drift heads for
+        other = 1.0 + r if up else 1.0 - r
+        ed = eps * drift
+        certain = (2.0 * drift * other > 40.0 * s2) & (ed > 0.0) & (s2 > 0.0) & (mu != 0.0)
         s, bits = next_u64(state[px])
         i = bits & _BYTE
         j = bits >> _S11
@@ -140,12 +144,12 @@ def voltmeter_fast(prev, new, residual, state, t0, t1, k, mark):  # pragma: no c
         a = x * x * s2 / ed
         w = 1.0 + 0.5 * a + math.sqrt(a * (1.0 + 0.25 * a))
         g = w if u * (w + 1.0) <= w else 1.0 / w
-        v = dt * mu * g
-        done = simple & fast & (v <= a_on)
+        v = dt * drift * g
+        done = certain & fast & (v <= eps)
         mark[px] = not done
         if done:
             prev[px] = l1
-            residual[px] = r + v
+            residual[px] = r + v if up else r - v
             state[px] = s
 
 
@@ -181,6 +185,8 @@ def voltmeter_slow(
             b_off = 1.0 + r
             if mu > 0.0 and 2.0 * mu * b_off > 40.0 * s2 and a_on > 0.0:
                 on = True  # P_on == 1.0 in double precision
+            elif mu < 0.0 and -2.0 * mu * a_on > 40.0 * s2 and b_off > 0.0:
+                on = False  # P_on < exp(-40) < 2**-54
             else:
                 pon = p_on_first(mu, sigma, a_on, b_off)
                 if pon >= 1.0:

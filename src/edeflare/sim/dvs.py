@@ -238,9 +238,12 @@ def draw_thresholds(
 
 @numba.njit(cache=True, nogil=True)
 def _count_invalid(flat):  # pragma: no cover - compiled
+    """Pixels that are negative, NaN or infinite (a branch-free, vectorised count)."""
     bad = 0
-    for v in flat:
-        bad += not (v >= 0.0 and v < np.inf)
+    top = np.finfo(flat.dtype).max
+    for i in range(np.uint64(flat.size)):
+        v = flat[i]
+        bad += np.int64(not ((v >= 0) & (v <= top)))
     return bad
 
 
