@@ -118,9 +118,24 @@ def test_method_parameters_are_the_factory_defaults():
 # The contract every registered method keeps
 
 
+@pytest.fixture(scope="module")
+def model_weights(tmp_path_factory):
+    """Identity-initialised weights for the ``model`` method (no bundled model needed)."""
+    from edeflare.models import create_model
+    from edeflare.models.weights import ModelCard, save_model
+
+    path = tmp_path_factory.mktemp("weights") / "tiny.safetensors"
+    save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
+    return path
+
+
+def _create(name, model_weights):
+    return create_method(name, weights=model_weights) if name == "model" else create_method(name)
+
+
 @pytest.mark.parametrize("name", list_methods())
-def test_method_contract(name, stream):
-    method = create_method(name)
+def test_method_contract(name, stream, model_weights):
+    method = _create(name, model_weights)
     before = stream.copy()
     out = method(stream, SIZE, rng=0)
     assert same_events(stream, before)  # input unchanged
@@ -135,8 +150,8 @@ def test_method_contract(name, stream):
 
 
 @pytest.mark.parametrize("name", list_methods())
-def test_method_rejects_bad_input(name):
-    method = create_method(name)
+def test_method_rejects_bad_input(name, model_weights):
+    method = _create(name, model_weights)
     with pytest.raises(EdeflareError, match="x out of range"):
         method(make_events([0], [40], [0], [1]), SIZE)
     with pytest.raises(EdeflareError, match="structured array"):

@@ -5,10 +5,11 @@ Every method, learned or classical, is a callable
 
 >>> import edeflare
 >>> edeflare.list_methods()
-['efr', 'pfd-a', 'pfd-b', 'raw', 'voxel']
+['efr', 'model', 'pfd-a', 'pfd-b', 'raw', 'voxel']
 >>> pfd_b = edeflare.create_method("pfd-b", window_us=25_000)
 
 ============  =========================================================================
+``model``     a trained E-DeflareNet (:mod:`edeflare.models`), the bundled one by default
 ``raw``       identity (the input, copied): the "no de-flaring" reference
 ``voxel``     Voxel Transform: 20 ms windows, encode 8 bins, decode (seeded); the
               paper's "null network" control
@@ -298,21 +299,25 @@ class RawMethod(Method):
         return _CopyStreamer()
 
 
-class _VoxelStreamer(Streamer):
-    """Aligned windows of ``window_us``: encode to ``bins`` bins, decode, in window order."""
+class _WindowStreamer(Streamer):
+    """Aligned windows of ``window_us`` through a batch ``transform``, in window order.
+
+    ``transform`` maps a list of complete ``(window_start, events)`` windows to
+    their outputs; windows without input events are skipped.
+    """
 
     def __init__(
-        self, sensor_size: SensorSize, window_us: int, bins: int, rng: np.random.Generator
+        self,
+        window_us: int,
+        transform: Callable[[list[tuple[int, np.ndarray]]], list[np.ndarray]],
     ) -> None:
-        self.size = sensor_size
         self.window_us = window_us
-        self.bins = bins
-        self.rng = rng
+        self.transform = transform
         self.pending = _EMPTY
         self.start: int | None = None
 
     def _windows(self, until_us: int | None) -> np.ndarray:
-        out = []
+        batch = []
         while self.pending.size:
             if self.start is None or self.pending["t"][0] >= self.start + self.window_us:
                 self.start = window_start_for(int(self.pending["t"][0]), self.window_us)
@@ -320,10 +325,10 @@ class _VoxelStreamer(Streamer):
             if until_us is not None and end > until_us:
                 break
             k = int(np.searchsorted(self.pending["t"], end, side="left"))
-            grid = encode(self.pending[:k], self.size, self.start, self.window_us, self.bins)
-            out.append(decode(grid, self.start, self.window_us, rng=self.rng))
+            batch.append((self.start, self.pending[:k]))
             self.pending = self.pending[k:]
             self.start = end
+        out = self.transform(batch) if batch else []
         return np.concatenate(out) if out else _EMPTY.copy()
 
     def process(self, events: np.ndarray, until_us: int) -> np.ndarray:
@@ -349,9 +354,14 @@ class VoxelMethod(Method):
         self.bins = int(bins)
 
     def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
-        return _VoxelStreamer(
-            check_sensor_size(sensor_size), self.window_us, self.bins, np.random.default_rng(rng)
-        )
+        size = check_sensor_size(sensor_size)
+        gen = np.random.default_rng(rng)
+        w, bins = self.window_us, self.bins
+
+        def transform(batch: list[tuple[int, np.ndarray]]) -> list[np.ndarray]:
+            return [decode(encode(ev, size, s, w, bins), s, w, rng=gen) for s, ev in batch]
+
+        return _WindowStreamer(w, transform)
 
 
 class _EFRStreamer(Streamer):
@@ -451,6 +461,74 @@ class PFDMethod(Method):
 
     def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
         return _PFDStreamer(PFDFilter(sensor_size, score=self.score, **self.params))
+
+
+class ModelMethod(Method):
+    """A trained E-DeflareNet (see :class:`~edeflare.models.infer.ModelDeflarer`).
+
+    ``weights=None`` takes the model bundled with the package. Windows are the
+    model's own (its card's ``window_us``, 20 ms) and are batched
+    ``batch_windows`` at a time; decoding is seeded by ``(seed, window start)``.
+    """
+
+    def __init__(
+        self,
+        weights: str | os.PathLike[str] | None = None,
+        decoder: str = "keep",
+        device: str = "auto",
+        batch_windows: int = 4,
+        seed: int = 0,
+    ) -> None:
+        from .models.infer import DECODERS, bundled_weights
+        from .models.weights import read_card
+
+        if decoder not in DECODERS:
+            raise ParameterError(f"decoder must be one of {DECODERS}, got {decoder!r}")
+        if (
+            isinstance(batch_windows, bool)
+            or not isinstance(batch_windows, int)
+            or batch_windows < 1
+        ):
+            raise ParameterError(f"batch_windows must be a positive int, got {batch_windows!r}")
+        path = bundled_weights() if weights is None else weights
+        self.card = read_card(path)  # fails now on a missing or foreign file
+        super().__init__(
+            weights=str(path),
+            decoder=decoder,
+            device=device,
+            batch_windows=batch_windows,
+            seed=seed,
+        )
+
+    def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
+        from .models.infer import ModelDeflarer
+
+        p = self.params
+        seed = p["seed"] if rng is None or not isinstance(rng, (int, np.integer)) else int(rng)
+        deflarer = ModelDeflarer(
+            p["weights"],
+            decoder=p["decoder"],
+            device=p["device"],
+            batch_windows=p["batch_windows"],
+            seed=seed,
+        )
+        size = check_sensor_size(sensor_size)
+
+        def transform(batch: list[tuple[int, np.ndarray]]) -> list[np.ndarray]:
+            return [ev for _, ev in deflarer.windows(batch, size)]
+
+        return _WindowStreamer(deflarer.window_us, transform)
+
+
+@register_method("model")
+def _make_model(
+    weights: str | os.PathLike[str] | None = None,
+    decoder: str = "keep",
+    device: str = "auto",
+    batch_windows: int = 4,
+    seed: int = 0,
+) -> Method:
+    return ModelMethod(weights, decoder, device, batch_windows, seed)
 
 
 @register_method("raw")
@@ -599,7 +677,7 @@ def deflare_file(
     params: Mapping[str, Any] | None = None,
     rng: np.random.Generator | int | None = None,
     max_lag_us: int | None = 10_000_000,
-    evt_version: str = "evt3",
+    evt_version: str = "evt2",
     progress: bool | None = None,
 ) -> DeflareStats:
     """Stream a file through a method window by window and write the result atomically.
@@ -628,8 +706,8 @@ def deflare_file(
         warning), which bounds memory. ``None`` holds everything: exact for
         any length, memory grows with the output. Files shorter than
         ``max_lag_us`` are always exact.
-    evt_version : {"evt3", "evt2", "evt2.1"}
-        Encoding of ``.raw`` outputs.
+    evt_version : {"evt2", "evt3"}
+        Encoding of ``.raw`` outputs (see :func:`edeflare.io.write_event_chunks`).
     progress : bool, optional
         Show a progress bar; ``None`` shows it on a terminal only.
 

@@ -98,3 +98,66 @@ def test_bad_configuration(identity_weights, tmp_path):
         ModelDeflarer(tmp_path / "missing.safetensors")
     with pytest.raises(EdeflareError, match="no bundled model 'nope'"):
         bundled_weights("nope")
+
+
+def test_model_method_streams_files_like_one_pass(identity_weights, tmp_path, rng):
+    from edeflare.deflare import create_method, deflare_file
+    from edeflare.io import read_events, write_events
+
+    ev = random_events(rng, 4000, SIZE, t0=1_000_000, span_us=150_000)
+    write_events(tmp_path / "in.h5", ev, SIZE)
+    stats = deflare_file(
+        tmp_path / "in.h5",
+        tmp_path / "out.npz",
+        "model",
+        params={"weights": identity_weights},
+        progress=False,
+    )
+    out, size = read_events(tmp_path / "out.npz")
+    assert size == SIZE and stats.events_in == stats.events_out == ev.size
+    assert same_events(out, ev)  # identity model + keep decoder: the input itself
+    paper = create_method("model", weights=identity_weights, decoder="paper")
+    one_pass = paper(ev, SIZE, rng=3)
+    deflare_file(tmp_path / "in.h5", tmp_path / "p.h5", paper, rng=3, progress=False)
+    assert same_events(read_events(tmp_path / "p.h5").events, one_pass)
+
+
+def test_cli_deflare_with_a_model(identity_weights, tmp_path, rng, capsys):
+    from edeflare.cli import main
+    from edeflare.io import read_events, write_events
+
+    ev = random_events(rng, 1000, SIZE, t0=0, span_us=60_000)
+    write_events(tmp_path / "in.h5", ev, SIZE)
+    argv = [
+        "deflare",
+        str(tmp_path / "in.h5"),
+        str(tmp_path / "out.h5"),
+        "--model",
+        str(identity_weights),
+        "--decoder",
+        "keep",
+        "--batch-windows",
+        "2",
+    ]
+    assert main(argv) == 0
+    assert same_events(read_events(tmp_path / "out.h5").events, ev)
+    assert "model: 1,000 events in, 1,000 out" in capsys.readouterr().out
+    bad = [
+        "deflare",
+        str(tmp_path / "in.h5"),
+        str(tmp_path / "x.h5"),
+        "-m",
+        "efr",
+        "--decoder",
+        "paper",
+    ]
+    assert main(bad) == 1
+    assert "--decoder applies to --method model" in capsys.readouterr().err
+    foreign = tmp_path / "foreign.safetensors"
+    foreign.write_bytes(b"\x80\x04not a safetensors file")
+    assert (
+        main(["deflare", str(tmp_path / "in.h5"), str(tmp_path / "y.h5"), "--model", str(foreign)])
+        == 1
+    )
+    assert "only loads safetensors" in capsys.readouterr().err
+    assert not (tmp_path / "x.h5").exists() and not (tmp_path / "y.h5").exists()

@@ -12,7 +12,10 @@ import numpy as np
 from ..errors import EdeflareError, ParameterError
 from ._common import SIZE_HELP, sensor_size_arg
 
-HELP = "De-flare an event file with a method (raw, voxel, efr, pfd-a, pfd-b), streaming."
+HELP = (
+    "De-flare an event file, streaming: with the bundled E-DeflareNet (default), "
+    "a model of yours (--model PATH), or a baseline (raw, voxel, efr, pfd-a, pfd-b)."
+)
 
 
 def _ms(value: float) -> int:
@@ -36,6 +39,10 @@ _OPTIONS: dict[str, tuple[tuple[str, ...], str, Any]] = {
     "pfd_fifo_size": (("pfd-a", "pfd-b"), "fifo_size", int),
     "pfd_flip_against_previous": (("pfd-a", "pfd-b"), "flip_against_previous", bool),
     "pfd_real_score": (("pfd-a", "pfd-b"), "real_valued_score", bool),
+    "model": (("model",), "weights", str),
+    "decoder": (("model",), "decoder", str),
+    "device": (("model",), "device", str),
+    "batch_windows": (("model",), "batch_windows", int),
     "voxel_window_ms": (("voxel",), "window_us", _ms),
     "voxel_bins": (("voxel",), "bins", int),
 }
@@ -48,10 +55,10 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p = sub.add_parser("deflare", help=HELP, description=HELP, **kwargs)
     p.add_argument("input", type=Path)
     p.add_argument("output", type=Path, help="any writable format, by suffix")
-    p.add_argument("-m", "--method", required=True, choices=list_methods())
+    p.add_argument("-m", "--method", default="model", choices=list_methods())
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help=SIZE_HELP)
     p.add_argument("--window-ms", type=float, default=20.0, help="streaming window (ms)")
-    p.add_argument("--seed", type=int, help="seed of methods that draw (voxel)")
+    p.add_argument("--seed", type=int, help="seed of methods that draw (voxel, model)")
     p.add_argument(
         "--max-lag-ms",
         type=float,
@@ -61,9 +68,31 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     )
     p.add_argument(
         "--evt-version",
-        default="evt3",
-        choices=["evt3", "evt2", "evt2.1"],
-        help="encoding of .raw outputs",
+        default="evt2",
+        choices=["evt2", "evt3"],
+        help="encoding of .raw outputs (EVT 3.0 output must span under 16.8 s)",
+    )
+    g = p.add_argument_group("model (E-DeflareNet)")
+    g.add_argument(
+        "--model",
+        type=Path,
+        default=argparse.SUPPRESS,
+        metavar="PATH",
+        help="weights (.safetensors) [the bundled model]",
+    )
+    g.add_argument(
+        "--decoder",
+        choices=["keep", "paper"],
+        default=argparse.SUPPRESS,
+        help="keep: edit the input's own events; paper: resample the grid [keep]",
+    )
+    g.add_argument("--device", default=argparse.SUPPRESS, help="auto, cpu, cuda, cuda:1 [auto]")
+    g.add_argument(
+        "--batch-windows",
+        type=int,
+        default=argparse.SUPPRESS,
+        metavar="N",
+        help="20 ms windows per network call [4]",
     )
     g = p.add_argument_group("efr (paper: 50 Hz, rho1 0.6)")
     g.add_argument(

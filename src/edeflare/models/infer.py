@@ -40,7 +40,10 @@ def bundled_weights(name: str = "default") -> Path:
     path = _ASSETS / f"{name}.safetensors"
     if not path.is_file():
         shipped = sorted(p.stem for p in _ASSETS.glob("*.safetensors")) if _ASSETS.is_dir() else []
-        raise EdeflareError(f"no bundled model {name!r}; shipped: {shipped or 'none yet'}")
+        raise EdeflareError(
+            f"no bundled model {name!r} (shipped: {shipped or 'none yet'}); pass weights of "
+            "your own (--model PATH) or a baseline (--method efr, pfd-a, pfd-b, voxel)"
+        )
     return path
 
 
