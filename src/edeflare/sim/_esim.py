@@ -7,6 +7,8 @@ import math
 import numba
 import numpy as np
 
+from ._buffer import collect, grown
+
 __all__: list[str] = []
 
 
@@ -64,3 +66,25 @@ def esim_interval(
         last[q] = last_t
         q += 1
     return q, n
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def esim_frame(
+    log_prev, new, ref, last, c_on, c_off, log_eps, refractory, t0, t1, buf_t, buf_pix, buf_p, width
+):  # pragma: no cover - compiled
+    """One frame interval of every pixel in one compiled call; events sorted.
+
+    Returns ``(t, x, y, p, buf_t, buf_pix, buf_p)`` like
+    :func:`edeflare.sim._voltmeter.voltmeter_frame`.
+    """
+    q = 0
+    n = 0
+    while q < log_prev.size:
+        q, n = esim_interval(
+            log_prev, new, ref, last, c_on, c_off, log_eps, refractory, t0, t1,
+            q, n, buf_t, buf_pix, buf_p,
+        )  # fmt: skip
+        if q < log_prev.size:
+            buf_t, buf_pix, buf_p = grown(buf_t, buf_pix, buf_p, n)
+    t, x, y, p = collect(buf_t, buf_pix, buf_p, n, width, np.int64(math.floor(t0)))
+    return t, x, y, p, buf_t, buf_pix, buf_p

@@ -132,11 +132,10 @@ def _normal_tail(s, a):  # pragma: no cover - compiled
             return s, a + x
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
-def normal(s):  # pragma: no cover - compiled
-    """A standard normal draw (ziggurat, about 99 % on the fast path)."""
+@numba.njit(cache=True, error_model="numpy")
+def _normal_rest(s, z):  # pragma: no cover - compiled
+    """The ziggurat's rare branches for the 64 bits ``z`` (wedge or tail), then retries."""
     while True:
-        s, z = next_u64(s)
         i = np.intp(z & _BYTE)
         negative = ((z >> _S8) & _ONE) == _ONE
         j = z >> _S11
@@ -149,6 +148,19 @@ def normal(s):  # pragma: no cover - compiled
         s, u = uniform(s)
         if _ZIG_F[i] + u * (_ZIG_F[i + 1] - _ZIG_F[i]) < math.exp(-0.5 * x * x):
             return s, -x if negative else x
+        s, z = next_u64(s)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def normal(s):  # pragma: no cover - compiled
+    """A standard normal draw: the ziggurat's fast path inline (about 99 %), the rest called."""
+    s, z = next_u64(s)
+    i = np.intp(z & _BYTE)
+    j = z >> _S11
+    if j < _ZIG_K[i]:
+        x = np.float64(j) * _ZIG_W[i]
+        return s, -x if ((z >> _S8) & _ONE) == _ONE else x
+    return _normal_rest(s, z)
 
 
 @numba.njit(cache=True, error_model="numpy")

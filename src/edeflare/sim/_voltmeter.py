@@ -1,8 +1,9 @@
 """Compiled kernel of the DVS-Voltmeter simulator (see :mod:`edeflare.sim.dvs` for the model).
 
-One call simulates one frame interval ``(t0, t1]`` for every pixel of the
-chunks that are not finished, appending events to per-chunk buffers (see
-:mod:`edeflare.sim._chunks`). Pixels are independent: each has its own
+:func:`voltmeter_frame` simulates one frame interval ``(t0, t1]`` for every
+pixel in one call: a vectorised pass settles the common case, the full model
+handles the rest, and the events come back sorted (see
+:mod:`edeflare.sim._buffer`). Pixels are independent: each has its own
 residual voltage and its own random stream.
 """
 
@@ -13,6 +14,7 @@ import math
 import numba
 import numpy as np
 
+from ._buffer import collect, grown
 from ._rng import _BYTE, _S11, _ZIG_K, _ZIG_W, next_u64, normal, normal_sq_beyond, uniform
 
 __all__: list[str] = []
@@ -50,7 +52,7 @@ def p_on_first(mu, sigma, a_on, b_off):  # pragma: no cover - compiled
     return math.exp(y) * math.expm1(a * b_off) / math.expm1(a * (a_on + b_off))
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def first_passage(s, eps, drift, sigma, exact):  # pragma: no cover - compiled
     """Time for Brownian motion (drift ``drift``, diffusion ``sigma``) to travel ``eps``.
 
@@ -97,59 +99,74 @@ def first_passage(s, eps, drift, sigma, exact):  # pragma: no cover - compiled
     return s, lam / x2  # the limit T -> 0 (Levy)
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _drift_step(mu, s2, r, s, rem):  # pragma: no cover - compiled
+    """One sampling step towards the drift, branch-free (for the vectorised passes).
+
+    Returns ``(ok, fire, v, tau, s)``. ``ok``: the step is the one
+    :func:`voltmeter_slow` would take, with the same draws: the barrier
+    towards the drift is certain (``P_on`` is 1, or below 2**-54, in double
+    precision, so no polarity is drawn) and the ziggurat takes its fast path.
+    With ``a = z**2 sigma**2 / (eps |mu|)`` and ``w = 1 + a/2 + sqrt(a + a**2/4)``
+    the two Michael-Schucany-Haas roots are ``tau = m / w`` (taken with
+    probability ``w / (1 + w)``) and ``m w``, ``m = eps / |mu|``. With ``g = w``
+    or ``1 / w`` the voltage gathered in ``rem`` µs, ``eps rem / tau``, is
+    ``v = rem |mu| g``: an event happens iff ``v > eps``, at ``tau = eps / (|mu| g)``.
+    """
+    up = mu > 0.0
+    drift = abs(mu)
+    eps = 1.0 - r if up else 1.0 + r  # distance to the barrier the drift heads for
+    other = 1.0 + r if up else 1.0 - r
+    ed = eps * drift
+    certain = (2.0 * drift * other > 40.0 * s2) & (ed > 0.0) & (s2 > 0.0)
+    s, bits = next_u64(s)
+    i = bits & _BYTE
+    j = bits >> _S11
+    x = np.float64(j) * _ZIG_W[i]
+    fast = j < _ZIG_K[i]
+    s, u = uniform(s)
+    a = x * x * s2 / ed
+    w = 1.0 + 0.5 * a + math.sqrt(a * (1.0 + 0.25 * a))
+    g = w if u * (w + 1.0) <= w else 1.0 / w
+    v = rem * drift * g
+    return certain & fast, v > eps, v, eps / (drift * g), s
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _model(l0, l1, dt, k1, k2, k3, k4, k5, k6):  # pragma: no cover - compiled
+    """Drift ``mu`` and squared diffusion ``sigma**2`` of one pixel over one interval."""
+    avg = (l1 + l0) / 2.0
+    den = 1.0 / (avg + k2)
+    mu = (k1 * (l1 - l0) / dt) * den + k4 + k5 * avg
+    sigma = (k3 * math.sqrt(avg)) * den + k6
+    return mu, sigma * sigma
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def voltmeter_fast(prev, new, residual, state, t0, t1, k, mark):  # pragma: no cover - compiled
     """First pass over every pixel, branch-free so that it vectorises.
 
-    It settles the common case exactly as :func:`voltmeter_slow` would: the
-    barrier towards the drift is certain (``P_on`` is 1, or below 2**-54, in
-    double precision, so no polarity is drawn), the ziggurat takes its fast
-    path, and no event happens before ``t1``. Then the residual moves by
-    ``v`` towards that barrier, the state advances by two draws and ``prev``
-    takes the new intensity, in place. Every other pixel is left untouched
-    and marked for :func:`voltmeter_slow`, which redoes it from the same
-    state with the same draws, so the split does not change a single result.
-
-    With ``a = z**2 sigma**2 / (eps |mu|)`` and ``w = 1 + a/2 + sqrt(a + a**2/4)``
-    the two Michael-Schucany-Haas roots are ``tau = m / w`` (taken with
-    probability ``w / (1 + w)``) and ``m w``, where ``m = eps / |mu|``. With
-    ``g = w`` or ``1 / w`` the voltage gathered until the next frame,
-    ``eps (t1 - t0) / tau``, is ``v = (t1 - t0) |mu| g``; an event happens iff
-    ``v > eps``.
+    Settles the common case exactly as :func:`voltmeter_slow` would (see
+    :func:`_drift_step`): one step towards the drift, no event before ``t1``;
+    the residual moves by ``v``, the state advances by two draws and ``prev``
+    takes the new intensity, in place. Every other pixel is left untouched and
+    marked for :func:`voltmeter_slow`, which redoes it from the same state
+    with the same draws, so the split does not change a single result.
     """
     k1, k2, k3, k4, k5, k6 = k[0], k[1], k[2], k[3], k[4], k[5]
     dt = t1 - t0
     # An unsigned index lets numba drop its negative-index checks, so the loop vectorises.
     for px in range(np.uint64(prev.size)):
-        l0 = prev[px]
+        l0 = np.float64(prev[px])
         l1 = np.float64(new[px])
-        avg = (l1 + l0) / 2.0
-        den = 1.0 / (avg + k2)
-        mu = (k1 * (l1 - l0) / dt) * den + k4 + k5 * avg
-        sigma = (k3 * math.sqrt(avg)) * den + k6
-        s2 = sigma * sigma
+        mu, s2 = _model(l0, l1, dt, k1, k2, k3, k4, k5, k6)
         r = residual[px]
-        up = mu > 0.0
-        drift = abs(mu)
-        eps = 1.0 - r if up else 1.0 + r  # distance to the barrier the drift heads for
-        other = 1.0 + r if up else 1.0 - r
-        ed = eps * drift
-        certain = (2.0 * drift * other > 40.0 * s2) & (ed > 0.0) & (s2 > 0.0) & (mu != 0.0)
-        s, bits = next_u64(state[px])
-        i = bits & _BYTE
-        j = bits >> _S11
-        x = np.float64(j) * _ZIG_W[i]
-        fast = j < _ZIG_K[i]
-        s, u = uniform(s)
-        a = x * x * s2 / ed
-        w = 1.0 + 0.5 * a + math.sqrt(a * (1.0 + 0.25 * a))
-        g = w if u * (w + 1.0) <= w else 1.0 / w
-        v = dt * drift * g
-        done = certain & fast & (v <= eps)
+        ok, fire, v, _tau, s = _drift_step(mu, s2, r, state[px], dt)
+        done = ok & ~fire & (mu != 0.0)
         mark[px] = not done
         if done:
             prev[px] = l1
-            residual[px] = r + v if up else r - v
+            residual[px] = r + v if mu > 0.0 else r - v
             state[px] = s
 
 
@@ -169,13 +186,10 @@ def voltmeter_slow(
     cap = buf_t.size
     while q < idx.size:
         px = idx[q]
-        l0 = prev[px]
+        l0 = np.float64(prev[px])
         l1 = np.float64(new[px])
-        avg = (l1 + l0) / 2.0
-        den = 1.0 / (avg + k2)
-        mu = (k1 * (l1 - l0) / dt) * den + k4 + k5 * avg
-        sigma = (k3 * math.sqrt(avg)) * den + k6
-        s2 = sigma * sigma
+        mu, s2 = _model(l0, l1, dt, k1, k2, k3, k4, k5, k6)
+        sigma = math.sqrt(s2)
         r = residual[px]
         s = state[px]
         ts = t0
@@ -211,7 +225,8 @@ def voltmeter_slow(
                 a = z * z * s2 / ed
                 w = 1.0 + 0.5 * a + math.sqrt(a * (1.0 + 0.25 * a))
                 s, u = uniform(s)
-                g = w if u * (w + 1.0) <= w else 1.0 / w
+                inv_w = 1.0 / w
+                g = w if u * (w + 1.0) <= w else inv_w  # both computed: a select, no branch
                 v = rem * drift * g
                 fire = v > eps
                 tau = eps / (drift * g) if fire else math.inf
@@ -245,3 +260,36 @@ def sample_first_passage(n, eps, drift, sigma, exact, seed):  # pragma: no cover
     for i in range(n):
         s, out[i] = first_passage(s, eps, drift, sigma, exact)
     return out
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def voltmeter_frame(
+    prev, new, residual, state, t0, t1, k, exact, mark, buf_t, buf_pix, buf_p, width
+):  # pragma: no cover - compiled
+    """One frame interval ``(t0, t1]`` of every pixel, in one compiled call.
+
+    :func:`voltmeter_fast` for all pixels, :func:`voltmeter_slow` for the
+    marked ones (growing the event buffers as needed), then the sorted events.
+    Returns ``(t, x, y, p, buf_t, buf_pix, buf_p)``: the events' fields and
+    the buffers to reuse next time.
+    """
+    voltmeter_fast(prev, new, residual, state, t0, t1, k, mark)
+    count = 0
+    for px in range(np.uint64(mark.size)):
+        count += np.int64(mark[px])
+    rest = np.empty(count, dtype=np.int64)
+    j = 0
+    for px in range(mark.size):
+        if mark[px]:
+            rest[j] = px
+            j += 1
+    q = 0
+    n = 0
+    while q < rest.size:
+        q, n = voltmeter_slow(
+            rest, prev, new, residual, state, t0, t1, k, exact, q, n, buf_t, buf_pix, buf_p
+        )
+        if q < rest.size:
+            buf_t, buf_pix, buf_p = grown(buf_t, buf_pix, buf_p, n)
+    t, x, y, p = collect(buf_t, buf_pix, buf_p, n, width, np.int64(math.floor(t0)))
+    return t, x, y, p, buf_t, buf_pix, buf_p

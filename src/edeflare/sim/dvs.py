@@ -78,11 +78,11 @@ import numba
 import numpy as np
 
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size
-from ._buffer import EventBuffer
-from ._esim import esim_interval
+from ._buffer import new_buffers, to_events
+from ._esim import esim_frame
 from ._rng import seed_states
 from ._validation import SimError, check_choice, check_range, dataclass_from_dict, make_rng
-from ._voltmeter import voltmeter_fast, voltmeter_slow
+from ._voltmeter import voltmeter_frame
 
 __all__ = [
     "DVS240_K",
@@ -336,11 +336,13 @@ class VoltmeterSimulator(_FrameSimulator):
         seed = int(make_rng(rng).integers(0, 2**63))
         self._state = seed_states(n, seed)
         self._residual = np.zeros(n, dtype=np.float64)
-        self._prev = np.zeros(n, dtype=np.float64)
+        # The previous frame, stored exactly in float32 while frames are uint8, uint16 or
+        # float32 (less memory traffic in the per-pixel pass), in float64 once one is float64.
+        self._prev = np.zeros(n, dtype=np.float32)
         self._mark = np.empty(n, dtype=np.bool_)
         self._k = np.array(self.params.k, dtype=np.float64)
         self._exact = self.params.against_drift == "exact"
-        self._buffer = EventBuffer(width)
+        self._buffers = list(new_buffers())
 
     @property
     def residual(self) -> np.ndarray:
@@ -349,20 +351,18 @@ class VoltmeterSimulator(_FrameSimulator):
         return self._residual.reshape(height, width).copy()
 
     def _init(self, flat: np.ndarray) -> None:
+        if flat.dtype == np.float64:
+            self._prev = self._prev.astype(np.float64)
         self._prev[:] = flat
 
     def _interval(self, flat: np.ndarray, t0: float, t1: float) -> np.ndarray:
-        prev, residual, state, k = self._prev, self._residual, self._state, self._k
-        voltmeter_fast(prev, flat, residual, state, t0, t1, k, self._mark)
-        idx = np.flatnonzero(self._mark)
-
-        def kernel(q: int, n: int, buf_t, buf_pix, buf_p) -> tuple[int, int]:
-            return voltmeter_slow(
-                idx, prev, flat, residual, state, t0, t1, k, self._exact,
-                q, n, buf_t, buf_pix, buf_p,
-            )  # fmt: skip
-
-        return self._buffer.run(kernel, idx.size, t0)
+        if flat.dtype == np.float64 and self._prev.dtype != np.float64:
+            self._prev = self._prev.astype(np.float64)
+        t, x, y, p, *self._buffers = voltmeter_frame(
+            self._prev, flat, self._residual, self._state, t0, t1, self._k, self._exact,
+            self._mark, *self._buffers, self.sensor_size[0],
+        )  # fmt: skip
+        return to_events(t, x, y, p)
 
 
 class IdealSimulator(_FrameSimulator):
@@ -419,7 +419,7 @@ class IdealSimulator(_FrameSimulator):
         self._log = np.zeros(n, dtype=np.float64)
         self._ref = np.zeros(n, dtype=np.float64)
         self._last = np.full(n, -np.inf, dtype=np.float64)
-        self._buffer = EventBuffer(width)
+        self._buffers = list(new_buffers())
 
     def _init(self, flat: np.ndarray) -> None:
         np.log(flat.astype(np.float64) + self.params.log_eps, out=self._log)
@@ -427,14 +427,11 @@ class IdealSimulator(_FrameSimulator):
 
     def _interval(self, flat: np.ndarray, t0: float, t1: float) -> np.ndarray:
         p = self.params
-
-        def kernel(q: int, n: int, buf_t, buf_pix, buf_p) -> tuple[int, int]:
-            return esim_interval(
-                self._log, flat, self._ref, self._last, self._c_on, self._c_off,
-                p.log_eps, p.refractory_us, t0, t1, q, n, buf_t, buf_pix, buf_p,
-            )  # fmt: skip
-
-        events = self._buffer.run(kernel, self._log.size, t0)
+        t, x, y, pol, *self._buffers = esim_frame(
+            self._log, flat, self._ref, self._last, self._c_on, self._c_off,
+            p.log_eps, p.refractory_us, t0, t1, *self._buffers, self.sensor_size[0],
+        )  # fmt: skip
+        events = to_events(t, x, y, pol)
         noise = self._noise(t0, t1)
         if noise.size:
             events = np.concatenate([events, noise])
