@@ -14,12 +14,12 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import EdeflareError
-from . import convert, deflare, demo, evaluate, info, train, view
+from . import convert, deflare, demo, evaluate, info, simulate, train, view
 
 __all__ = ["build_parser", "main"]
 
 # Order of appearance in --help.
-COMMANDS = (info, convert, view, deflare, evaluate, train, demo)
+COMMANDS = (info, convert, view, deflare, evaluate, simulate, train, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:
