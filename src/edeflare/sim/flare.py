@@ -175,6 +175,11 @@ class GlareSpec:
         Angular width :math:`w` of a streak.
     rotation_deg : float
         Angle of the first streak.
+
+    Examples
+    --------
+    >>> GlareSpec(level=20.0, streaks=6).streak_gain
+    2.0
     """
 
     level: float = 60.0
@@ -239,6 +244,11 @@ class GhostSpec:
         How much dimmer the centre is than the rim (0: flat, 1: black centre).
     fringe : float
         Relative spread of ``k`` and radius between red and blue (colour fringes).
+
+    Examples
+    --------
+    >>> GhostSpec(k=-2.0, radius_px=12.0, level=8.0).hollow
+    0.3
     """
 
     k: float

@@ -74,7 +74,10 @@ class Templates:
 
 
 def flare7k_names(root: str | os.PathLike[str]) -> list[str]:
-    """Names (paths relative to ``root``) of the Flare7K++ pairs under ``root``, for scripts."""
+    """Names (paths relative to ``root``) of the Flare7K++ pairs under ``root``, for scripts.
+
+    See :func:`edeflare.sim.flare.find_flare7k_pairs` for the layout and the errors.
+    """
     root = Path(root)
     return [p.relative_to(root).as_posix() for p, _ in find_flare7k_pairs(root)]
 
@@ -85,7 +88,15 @@ def build_templates(
     *,
     flare7k: str | os.PathLike[str] | None = None,
 ) -> Templates:
-    """Build the flare and light templates of ``script`` (see the module docstring)."""
+    """Build the flare and light templates of ``script`` (see the module docstring).
+
+    Examples
+    --------
+    >>> from edeflare.sim.optics import PSFConfig
+    >>> tp = build_templates(FlareScript(psf=PSFConfig(grid=64, dust_count=5)))
+    >>> tp.flare.shape, float(tp.light.max()) == FlareScript().light.peak  # 64 + 2 (4 r + 2)
+    ((100, 100), True)
+    """
     _width, height = check_sensor_size(sensor_size)
     peak = script.light.peak
     if script.flare7k is not None:
