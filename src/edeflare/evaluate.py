@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import zip_longest
 from pathlib import Path
@@ -30,6 +30,7 @@ from .metrics import METRICS, SegmentMetrics, segment_metrics
 __all__ = [
     "Evaluation",
     "Summary",
+    "combine_summaries",
     "evaluate",
     "evaluate_files",
     "evaluate_streams",
@@ -89,14 +90,23 @@ def summarize(segments: Iterable[SegmentMetrics]) -> Summary:
     return Summary(means, undefined, int(table.shape[0]))
 
 
-def _combine(summaries: Iterable[Summary]) -> Summary:
-    """Mean over files of per-file means; undefined counts and segments add up."""
+def combine_summaries(summaries: Iterable[Summary], metrics: Sequence[str] = METRICS) -> Summary:
+    """Mean over files of per-file means; undefined counts and segments add up.
+
+    Examples
+    --------
+    >>> a = Summary({"chamfer": 1.0}, {"chamfer": 0}, 3)
+    >>> b = Summary({"chamfer": 3.0}, {"chamfer": 1}, 1)
+    >>> s = combine_summaries([a, b], metrics=("chamfer",))
+    >>> s.means["chamfer"], s.undefined["chamfer"], s.n_segments
+    (2.0, 1, 4)
+    """
     summaries = list(summaries)
     means = {}
-    for m in METRICS:
+    for m in metrics:
         vals = [s.means[m] for s in summaries if not math.isnan(s.means[m])]
         means[m] = float(np.mean(vals)) if vals else math.nan
-    undefined = {m: sum(s.undefined[m] for s in summaries) for m in METRICS}
+    undefined = {m: sum(s.undefined[m] for s in summaries) for m in metrics}
     return Summary(means, undefined, sum(s.n_segments for s in summaries))
 
 
@@ -303,5 +313,5 @@ def evaluate(
             )
             per_file.setdefault(name, {})[stem] = summarize(m for _, m in segments)
             bar.update(1)
-    methods = {name: _combine(files.values()) for name, files in per_file.items()}
+    methods = {name: combine_summaries(files.values()) for name, files in per_file.items()}
     return Evaluation(per_file, methods)
