@@ -63,6 +63,7 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numba
 import numpy as np
 
 from .. import __version__
@@ -96,6 +97,8 @@ __all__ = [
     "GenerationReport",
     "Recipe",
     "SequenceData",
+    "SequenceInputs",
+    "draw_inputs",
     "generate_dataset",
     "generate_sequence",
     "list_recipes",
@@ -332,6 +335,9 @@ class SequenceData:
     index : int
     streams : dict
         ``{"input", "gt", "flare", "light", "background"} -> events``.
+    components : Components
+        The pure streams and their intensities at each other's events, as
+        weighted by the recipe (to recompose with other variants or draws).
     script : FlareScript
     background : dict
         The background's provenance.
@@ -343,12 +349,24 @@ class SequenceData:
 
     index: int
     streams: dict[str, np.ndarray]
+    components: Components
     script: FlareScript
     background: dict[str, Any]
     sensor_size: SensorSize
     t_start_us: int
     t_end_us: int
     timings: dict[str, float]
+
+
+@dataclass(frozen=True)
+class SequenceInputs:
+    """The random inputs of one sequence: script, background and the remaining seeds."""
+
+    index: int
+    script: FlareScript
+    background: Background
+    compose_seed: np.random.SeedSequence
+    forward_seed: np.random.SeedSequence
 
 
 class _Timer:
@@ -369,15 +387,22 @@ class _Timer:
         self.seconds[self._stage] += time.perf_counter() - self._t0
 
 
-def _interpolate(
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _interpolate(t, x, y, t0, t1, prev, cur, out):  # pragma: no cover - compiled
+    """``out[i]``: the intensity at event ``i``, linear between ``prev`` (t0) and ``cur`` (t1)."""
+    span = max(t1 - t0, 1)
+    for i in range(t.size):
+        frac = min(max((t[i] - t0) / span, 0.0), 1.0)
+        a = np.float64(prev[y[i], x[i]])
+        out[i] = a + frac * (np.float64(cur[y[i], x[i]]) - a)
+
+
+def _sample_frames(
     events: np.ndarray, t0: int, t1: int, prev: np.ndarray, cur: np.ndarray
 ) -> np.ndarray:
-    """Intensity at each event, linear in time between frames ``prev`` (t0) and ``cur`` (t1)."""
-    y, x = events["y"], events["x"]
-    a = prev[y, x].astype(np.float64)
-    b = cur[y, x].astype(np.float64)
-    frac = np.clip((events["t"] - t0) / max(t1 - t0, 1), 0.0, 1.0)
-    return a + frac * (b - a)
+    out = np.empty(events.size, dtype=np.float64)
+    _interpolate(events["t"], events["x"], events["y"], t0, t1, prev, cur, out)
+    return out
 
 
 _SOURCES: dict[str, BackgroundSource] = {}
@@ -399,6 +424,40 @@ def _flare7k_names(root: str) -> list[str]:
             raise GenerationError(f"{root}: holds no Flare7K++ image pairs")
         _FLARE7K[root] = names
     return _FLARE7K[root]
+
+
+def _check_index(recipe: Recipe, index: Any) -> int:
+    if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+        raise ParameterError(f"index must be an int, got {index!r}")
+    if not 0 <= index < recipe.sequences:
+        raise ParameterError(f"index must be in [0, {recipe.sequences}), got {index}")
+    return int(index)
+
+
+def draw_inputs(
+    recipe: Recipe, index: int, *, source: BackgroundSource | None = None
+) -> SequenceInputs:
+    """Sequence ``index``'s script and background: the first step of :func:`generate_sequence`.
+
+    Examples
+    --------
+    >>> r = Recipe(sensor_size=(32, 24), duration_us=20_000, scene=SceneConfig(fps=1000.0))
+    >>> a, b = draw_inputs(r, 5), draw_inputs(r, 5)
+    >>> a.script == b.script, a.background.description == b.background.description
+    (True, True)
+    """
+    index = _check_index(recipe, index)
+    size, duration = recipe.sensor_size, recipe.duration_us
+    s_script, s_bg, s_comp, s_fwd = np.random.SeedSequence([recipe.seed, index]).spawn(4)
+    ms = duration / 1000
+    config = dataclasses.replace(recipe.script, duration_ms=(ms, ms))
+    names = _flare7k_names(recipe.flare7k) if recipe.flare7k else None
+    script = draw_script(config, flare7k_names=names, rng=np.random.default_rng(s_script))
+    if script.duration_us != duration:  # ScriptConfig rounds ms to µs
+        script = dataclasses.replace(script, duration_us=duration)
+    src = source or _source_for(recipe)
+    background = src.draw(duration, size, script.sensor, rng=np.random.default_rng(s_bg))
+    return SequenceInputs(index, script, background, s_comp, s_fwd)
 
 
 def generate_sequence(
@@ -424,49 +483,48 @@ def generate_sequence(
     >>> sorted(a.streams) == sorted(GROUPS), a.t_end_us
     (True, 20000)
     """
-    if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
-        raise ParameterError(f"index must be an int, got {index!r}")
-    if not 0 <= index < recipe.sequences:
-        raise ParameterError(f"index must be in [0, {recipe.sequences}), got {index}")
+    index = _check_index(recipe, index)
     timer = _Timer()
     size, duration = recipe.sensor_size, recipe.duration_us
-    s_script, s_bg, s_comp, s_fwd = np.random.SeedSequence([recipe.seed, int(index)]).spawn(4)
-    ms = duration / 1000
-    config = dataclasses.replace(recipe.script, duration_ms=(ms, ms))
-    names = _flare7k_names(recipe.flare7k) if recipe.flare7k else None
-    script = draw_script(config, flare7k_names=names, rng=np.random.default_rng(s_script))
-    if script.duration_us != duration:  # ScriptConfig rounds ms to µs
-        script = dataclasses.replace(script, duration_us=duration)
-
     with timer("background"):
-        src = source or _source_for(recipe)
-        background = src.draw(duration, size, script.sensor, rng=np.random.default_rng(s_bg))
-
-    streams, intensity = _stream_pass(recipe, script, background, s_fwd, timer)
+        inputs = draw_inputs(recipe, index, source=source)
+    background = inputs.background
+    streams, intensity = _stream_pass(recipe, inputs.script, background, inputs.forward_seed, timer)
 
     with timer("compose"):
-        if recipe.variant == "forward":
-            ob, gt = streams.pop("forward_ob"), streams.pop("forward_gt")
+        forward = {
+            k: streams.pop(f"forward_{k}") for k in ("ob", "gt") if f"forward_{k}" in streams
+        }
+        if recipe.weights == "counts":
+            fields = {name: CountIntensity(streams[name], size) for name in streams}
+            components = Components.from_fields(streams, fields, 0, duration)
         else:
-            if recipe.weights == "counts":
-                fields = {name: CountIntensity(streams[name], size) for name in streams}
-                components = Components.from_fields(streams, fields, 0, duration)
-            else:
-                bg_field = background.intensity
-                for name in ("background", "flare", "light"):
-                    intensity["background"][name] = bg_field.sample(streams[name])
-                components = Components(streams, intensity, 0, duration)
+            bg_field = background.intensity
+            for name in ("background", "flare", "light"):
+                intensity["background"][name] = bg_field.sample(streams[name])
+            components = Components(streams, intensity, 0, duration)
+        if recipe.variant == "forward":
+            ob, gt = forward["ob"], forward["gt"]
+        else:
             ob, gt = compose_pair(
                 components,
                 recipe.variant,
                 jitter_us=recipe.jitter_us,
                 independent_background=recipe.independent_background,
-                rng=np.random.default_rng(s_comp),
+                rng=np.random.default_rng(inputs.compose_seed),
             )
     out = {"input": ob, "gt": gt}
     out.update({k: streams[k] for k in ("flare", "light", "background")})
     return SequenceData(
-        int(index), out, script, background.description, size, 0, duration, timer.seconds
+        index,
+        out,
+        components,
+        inputs.script,
+        background.description,
+        size,
+        0,
+        duration,
+        timer.seconds,
     )
 
 
@@ -493,7 +551,7 @@ def _stream_pass(
         sim_ob = camera_simulator(script.sensor, size, rng=np.random.default_rng(seq_ob))
         sim_gt = camera_simulator(script.sensor, size, rng=np.random.default_rng(seq_gt))
     bg = background.events
-    bg_t = bg["t"]
+    bg_t = np.ascontiguousarray(bg["t"])
     i_f_bg = np.zeros(bg.size)
     i_l_bg = np.zeros(bg.size)
     chunks: dict[str, list[np.ndarray]] = {k: [] for k in ("flare", "light", "ob", "gt")}
@@ -517,17 +575,12 @@ def _stream_pass(
                 chunks["gt"].append(sim_gt.feed(bgf + light, t))
         with timer("compose"):
             hi = int(np.searchsorted(bg_t, t, side="right"))
-            if prev is None:
-                sel = bg[done:hi]
-                i_f_bg[done:hi] = flare[sel["y"], sel["x"]]
-                i_l_bg[done:hi] = light[sel["y"], sel["x"]]
-            else:
-                t0, f0, l0 = prev
-                sel = bg[done:hi]
-                i_f_bg[done:hi] = _interpolate(sel, t0, t, f0, flare)
-                i_l_bg[done:hi] = _interpolate(sel, t0, t, l0, light)
-                i_f_f.append(_interpolate(ef, t0, t, f0, flare))
-                i_l_l.append(_interpolate(el, t0, t, l0, light))
+            t0, f0, l0 = prev if prev is not None else (t, flare, light)
+            sel = bg[done:hi]
+            i_f_bg[done:hi] = _sample_frames(sel, t0, t, f0, flare)
+            i_l_bg[done:hi] = _sample_frames(sel, t0, t, l0, light)
+            i_f_f.append(_sample_frames(ef, t0, t, f0, flare))
+            i_l_l.append(_sample_frames(el, t0, t, l0, light))
             done = hi
             chunks["flare"].append(ef)
             chunks["light"].append(el)
@@ -545,13 +598,13 @@ def _stream_pass(
         ):
             events = np.concatenate(parts) if parts else np.empty(0, dtype=EVENT_DTYPE)
             vals = np.concatenate(inten) if inten else np.empty(0)
-            keep = events["t"] < duration
-            streams[name] = events[keep]
-            values[name] = vals[keep]
+            n = int(np.searchsorted(events["t"], duration))  # sorted: cut at the end
+            streams[name] = events[:n]
+            values[name] = vals[:n]
         if forward:
             for name in ("ob", "gt"):
                 events = np.concatenate(chunks[name])
-                streams[f"forward_{name}"] = events[events["t"] < duration]
+                streams[f"forward_{name}"] = events[: int(np.searchsorted(events["t"], duration))]
         intensity = {
             "background": {},
             "flare": {"background": i_f_bg, "flare": values["flare"]},

@@ -502,30 +502,42 @@ class NightStreet:
         return out
 
     def sample(self, events: np.ndarray) -> np.ndarray:
-        """The exact intensity at each event's ``(t, x, y)`` (float64)."""
+        """The exact intensity at each event's ``(t, x, y)`` (float64): :meth:`frame` there."""
         p = self.params
-        t = events["t"].astype(np.float64)
-        scale = np.exp(-p["zoom_per_s"] * t * 1e-6)
-        shake = p["shake_px"] * np.sin(2 * np.pi * p["shake_hz"] * t * 1e-6 + p["shake_phase"])
-        qx = self._c0[0] + self._v[0] * t + (events["x"] - p["focus"][0]) * scale
-        qy = self._c0[1] + self._v[1] * t + shake + (events["y"] - p["focus"][1]) * scale
-        return _bilinear(self.texture, qx, qy)
+        out = np.empty(events.size, dtype=np.float64)
+        _sample(
+            self.texture, events["t"], events["x"], events["y"], out,
+            p["zoom_per_s"], p["shake_px"], p["shake_hz"], p["shake_phase"],
+            p["focus"][0], p["focus"][1], self._c0[0], self._c0[1], self._v[0], self._v[1],
+        )  # fmt: skip
+        return out
 
     def describe(self) -> dict[str, Any]:
         """The drawn scene parameters, JSON-ready."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in self.params.items()}
 
 
-def _bilinear(tex: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _sample(
+    tex, t, x, y, out, zoom, shake_px, shake_hz, phase, fx, fy, c0x, c0y, vx, vy
+):  # pragma: no cover
+    """:meth:`NightStreet.frame` at each event's own time and pixel (the same arithmetic)."""
     th, tw = tex.shape
-    qx = np.clip(qx, 0.0, tw - 1.000001)
-    qy = np.clip(qy, 0.0, th - 1.000001)
-    ix, iy = qx.astype(np.int64), qy.astype(np.int64)
-    fx, fy = qx - ix, qy - iy
-    t = tex.astype(np.float64, copy=False)
-    top = (1 - fx) * t[iy, ix] + fx * t[iy, ix + 1]
-    bottom = (1 - fx) * t[iy + 1, ix] + fx * t[iy + 1, ix + 1]
-    return (1 - fy) * top + fy * bottom
+    qx_hi = tw - 1.000001
+    qy_hi = th - 1.000001
+    for i in range(t.size):
+        tt = np.float64(t[i])
+        scale = math.exp(-zoom * tt * 1e-6)
+        shake = shake_px * math.sin(2 * math.pi * shake_hz * tt * 1e-6 + phase)
+        qx = min(max(c0x + vx * tt + (x[i] - fx) * scale, 0.0), qx_hi)
+        qy = min(max(c0y + vy * tt + shake + (y[i] - fy) * scale, 0.0), qy_hi)
+        ix = np.int64(qx)
+        iy = np.int64(qy)
+        wx = qx - ix
+        wy = qy - iy
+        top = (1.0 - wx) * tex[iy, ix] + wx * tex[iy, ix + 1]
+        bottom = (1.0 - wx) * tex[iy + 1, ix] + wx * tex[iy + 1, ix + 1]
+        out[i] = (1.0 - wy) * top + wy * bottom
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")

@@ -188,7 +188,7 @@ def fusion_weights(
     n_comp, n = inten.shape
     if not 0 <= index < n_comp:
         raise SimError(f"index must be in [0, {n_comp}), got {index}")
-    if n and not (np.isfinite(inten).all() and (inten >= 0).all()):
+    if n and not (np.isfinite(inten).all() and inten.min() >= 0):
         raise SimError("intensities must be finite and >= 0")
     ks: Sequence[Any] = (1.0,) * n_comp if k is None else k
     if len(ks) != n_comp:
@@ -197,17 +197,20 @@ def fusion_weights(
     if needs_events and (events is None or events.size != n):
         raise SimError("(H, W) coefficient maps need the events (one per intensity column)")
     ev = events if events is not None else np.empty(0, dtype=EVENT_DTYPE)
-    coeffs = [np.broadcast_to(_coefficient(c, ev, j), (n,)) for j, c in enumerate(ks)]
-    effective = np.stack(coeffs) * inten
-    total = effective.sum(axis=0)
-    k_total = np.sum(coeffs, axis=0)
+    coeffs = [_coefficient(c, ev, j) for j, c in enumerate(ks)]
+    total = np.zeros(n)
+    for c, row in zip(coeffs, inten, strict=True):
+        total += c * row
+    mine = coeffs[index] * inten[index]
+    k_total = sum(coeffs)
+    dark = total <= 0
     with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.where(
-            total > 0,
-            effective[index] / np.where(total > 0, total, 1.0),
-            np.where(k_total > 0, coeffs[index] / np.where(k_total > 0, k_total, 1.0), 0.0),
-        )
-    return np.clip(w, 0.0, 1.0)
+        w = mine / total
+    if dark.any():  # every k_j I_j is zero: the k shares
+        share = np.broadcast_to(coeffs[index], (n,))[dark]
+        k_sum = np.broadcast_to(k_total, (n,))[dark]
+        w[dark] = np.where(k_sum > 0, share / np.where(k_sum > 0, k_sum, 1.0), 0.0)
+    return np.clip(w, 0.0, 1.0, out=w)
 
 
 def keep_masks(
