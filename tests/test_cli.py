@@ -116,11 +116,26 @@ def test_demo_writes_everything(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["observed_events"] > summary["clean_events"] > 0
-    for name in ("observed.h5", "clean.h5", "comparison.png", "comparison.gif", "voxels.png"):
+    events = summary["events"]
+    assert events["input"] > events["ground_truth"] > 0
+    for name in (
+        "input.h5",
+        "ground_truth.h5",
+        "raw.h5",
+        "pfd-b.h5",
+        "comparison.png",
+        "comparison.gif",
+        "voxels.png",
+        "metrics.md",
+        "metrics.json",
+    ):
         assert (out / name).stat().st_size > 0
-    observed, size = read_events(out / "observed.h5")
-    assert size == (346, 260) and observed.size == summary["observed_events"]
+    inp, size = read_events(out / "input.h5")
+    assert size == (346, 260) and inp.size == events["input"]
+    raw, _ = read_events(out / "raw.h5")
+    assert raw.size == inp.size  # the raw row is the input itself
+    table = json.loads((out / "metrics.json").read_text())
+    assert {"raw", "voxel", "efr", "pfd-a", "pfd-b"} <= set(table["values"])
     assert str(out) in capsys.readouterr().out
 
 
