@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import same_events
+from conftest import random_events, same_events
 from edeflare.cli import main
 from edeflare.data.generate import (
     GROUPS,
@@ -31,6 +31,7 @@ from edeflare.data.generate import (
 from edeflare.data.pairs import PairedWindows, list_sequences
 from edeflare.errors import EdeflareError
 from edeflare.events import check_events, merge_events
+from edeflare.io import write_events
 from edeflare.io.dsec import DsecReader
 from edeflare.sim.background import SceneConfig
 from edeflare.sim.compose import compose_pair
@@ -161,6 +162,27 @@ def test_recorded_backgrounds_from_a_real_file(real_data, tmp_path):
         bg = json.loads(f.attrs["background"])
     assert bg["kind"] == "recorded" and bg["file"] == "davis346_street_cars.aedat4"
     assert bg["offset_xy"] == [0, 0]
+
+
+def test_recorded_data_in_another_place_gives_identical_files(tmp_path, rng):
+    """Manifests and files name background files relative to their common folder."""
+    events = random_events(rng, 40_000, (80, 60), span_us=500_000)
+    for place in ("a", "b"):
+        for seq in ("zurich_00", "interlaken_00"):
+            write_events(tmp_path / place / seq / "events.h5", events, (80, 60))
+    made = {}
+    for place in ("a", "b"):
+        files = tuple(
+            str(tmp_path / place / s / "events.h5") for s in ("zurich_00", "interlaken_00")
+        )
+        recipe = dataclasses.replace(
+            TINY, sequences=2, test_sequences=1, background="recorded", background_files=files
+        )
+        report = generate_dataset(recipe, tmp_path / f"out_{place}", progress=False)
+        made[place] = digests(tmp_path / f"out_{place}")
+        names = report.manifest["recipe"]["background_files"]
+        assert names == ["zurich_00/events.h5", "interlaken_00/events.h5"]
+    assert made["a"] == made["b"]
 
 
 # ---------------------------------------------------------------------------- datasets

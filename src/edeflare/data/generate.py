@@ -78,6 +78,7 @@ from ..sim.background import (
     SceneConfig,
     SyntheticBackground,
     camera_simulator,
+    relative_names,
 )
 from ..sim.compose import (
     VARIANTS,
@@ -280,9 +281,23 @@ class Recipe:
         """A JSON-ready dict (:meth:`from_dict` round-trips it)."""
         return json.loads(json.dumps(dataclasses.asdict(self)))
 
+    def identity(self) -> dict[str, Any]:
+        """:meth:`to_dict` with input paths reduced to names that do not depend on their place.
+
+        Background files become paths relative to their common folder and the
+        Flare7K++ folder its name, so the same data in another place gives the
+        same manifest and byte-identical files. This is what manifests record.
+        """
+        d = self.to_dict()
+        d["background_files"] = (
+            relative_names(self.background_files) if self.background_files else []
+        )
+        d["flare7k"] = None if self.flare7k is None else Path(self.flare7k).name
+        return d
+
     def sha256(self) -> str:
-        """A digest of :meth:`to_dict`, stored in every file to detect a changed recipe."""
-        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        """A digest of :meth:`identity`, stored in every file to detect a changed recipe."""
+        text = json.dumps(self.identity(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -677,7 +692,7 @@ def _manifest(recipe: Recipe, entries: Mapping[int, dict[str, Any]]) -> dict[str
     return {
         "format": _FORMAT,
         "edeflare_version": __version__,
-        "recipe": recipe.to_dict(),
+        "recipe": recipe.identity(),
         "seed": recipe.seed,
         "seed_rule": "numpy.random.SeedSequence([seed, index])",
         "sequences": recipe.sequences,
@@ -874,7 +889,7 @@ def _check_existing_manifest(path: Path, recipe: Recipe) -> None:
         old_recipe = old["recipe"]
     except (OSError, ValueError, KeyError, TypeError):
         raise EventFileError(path, "is not a dataset manifest; use an empty folder") from None
-    if old_recipe != recipe.to_dict():
+    if old_recipe != recipe.identity():
         raise GenerationError(
             f"{path.parent} holds a dataset of another recipe ({old_recipe.get('name')!r}, "
             "different settings); generate into an empty folder"

@@ -72,6 +72,7 @@ __all__ = [
     "SceneConfig",
     "SyntheticBackground",
     "fit_to_sensor",
+    "relative_names",
 ]
 
 INTENSITY_ESTIMATORS = ("accumulation", "counts", "video")
@@ -161,6 +162,26 @@ def fit_to_sensor(
 # ---------------------------------------------------------------------------- recorded
 
 
+def relative_names(paths: Sequence[str | os.PathLike[str]]) -> list[str]:
+    """Paths relative to their common folder (a lone file: its name), in POSIX form.
+
+    Provenance recorded this way does not depend on where the data lives, and
+    DSEC's many ``events.h5`` stay distinct.
+
+    Examples
+    --------
+    >>> relative_names(["/d/zurich_00/events.h5", "/d/interlaken_00/events.h5"])
+    ['zurich_00/events.h5', 'interlaken_00/events.h5']
+    >>> relative_names(["data/drive.raw"])
+    ['drive.raw']
+    """
+    absolute = [Path(os.path.abspath(p)) for p in paths]
+    if len(absolute) == 1:
+        return [absolute[0].name]
+    root = Path(os.path.commonpath([p.parent for p in absolute]))
+    return [p.relative_to(root).as_posix() for p in absolute]
+
+
 _CACHE: dict[tuple[str, int, int], tuple[np.ndarray, SensorSize]] = {}
 _CACHE_FILES = 8
 
@@ -206,6 +227,8 @@ class RecordedBackground:
         self.paths = [Path(p) for p in paths]
         if not self.paths:
             raise SimError("RecordedBackground needs at least one event file")
+        self.names = relative_names(self.paths)
+        """Names of the files that do not depend on where they live (see :func:`relative_names`)."""
         self.sensor_size = None if sensor_size is None else check_sensor_size(sensor_size)
         self.intensity = check_choice("intensity", intensity, ("accumulation", "counts"))
         self.accumulation = accumulation or AccumulationParams()
@@ -241,7 +264,7 @@ class RecordedBackground:
         """JSON-ready settings."""
         return {
             "kind": "recorded",
-            "files": [p.name for p in self.paths],
+            "files": list(self.names),
             "intensity": self.intensity,
             "accumulation": self.accumulation.to_dict(),
         }
@@ -283,7 +306,7 @@ class RecordedBackground:
             field = CountIntensity(events, target, floor=1e-3)
         description = {
             "kind": "recorded",
-            "file": path.name,
+            "file": self.names[i],
             "start_us": start,
             "duration_us": duration,
             "source_sensor_size": list(self._sizes[i]),
