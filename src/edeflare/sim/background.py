@@ -34,10 +34,10 @@ texture point
 
 Frames at ``fps`` go through the sample's own camera (the script's sensor
 spec, its own random stream) and Poisson background-activity noise is added
-(``noise_rate_hz`` per pixel, random polarity). Night-street rates come out
-around 1-5 M events/s at 640x480. The intensity field is the texture sampled
-exactly at each event (no estimate needed), and :meth:`Background.video`
-renders any frame for the forward model.
+(``noise_rate_hz`` per pixel, random polarity). Event rates come out at
+about 2 M events/s at 640x480 (median; 1-10 across scenes). The intensity
+field is the texture sampled exactly at each event (no estimate needed), and
+:meth:`Background.video` renders any frame for the forward model.
 """
 
 from __future__ import annotations
