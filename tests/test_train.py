@@ -118,7 +118,7 @@ def test_resume_refuses_another_configuration(dataset, tmp_path):
         )
 
 
-def test_data_loader_workers_give_the_same_model(dataset, tmp_path):
+def test_data_loader_workers_and_precompute_give_the_same_model(dataset, tmp_path):
     a = train(_config(iterations=4), _paths(dataset, "train"), tmp_path / "a", progress=False)
     b = train(
         _config(iterations=4, num_workers=2),
@@ -126,8 +126,14 @@ def test_data_loader_workers_give_the_same_model(dataset, tmp_path):
         tmp_path / "b",
         progress=False,
     )
-    wa, wb = _weights(a), _weights(b)
-    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    c = train(
+        _config(iterations=4, precompute=True),
+        _paths(dataset, "train"),
+        tmp_path / "c",
+        progress=False,
+    )
+    wa, wb, wc = _weights(a), _weights(b), _weights(c)
+    assert all(torch.equal(wa[k], wb[k]) and torch.equal(wa[k], wc[k]) for k in wa)
 
 
 def test_too_little_data_is_a_clear_error(dataset, tmp_path):

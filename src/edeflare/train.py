@@ -74,6 +74,7 @@ class TrainConfig:
     checkpoint_every: int = 500
     amp: bool = True  # mixed precision, on CUDA only
     num_workers: int = 0
+    precompute: bool = False  # encode every training window once, keep int16 grids in memory
     device: str = "auto"
     data: str = ""  # description of the training data, for the model card
 
@@ -109,6 +110,7 @@ _FREE_ON_RESUME = frozenset(
         "val_windows",
         "checkpoint_every",
         "num_workers",
+        "precompute",
         "device",
         "data",
     }
@@ -316,6 +318,7 @@ def train(
         crop=config.crop,
         flip=config.flip,
         seed=config.seed,
+        precompute=config.precompute,
     )
     val_set = (
         PairedWindows(val_paths, window_us=config.window_us, bins=config.bins)

@@ -79,3 +79,17 @@ def test_bad_datasets(tmp_path, rng):
         PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"])
     with pytest.raises(ValueError, match="exceeds the sensor"):
         PairedWindows([tmp_path / "a.h5"], crop=(13, 8))
+
+
+def test_precomputed_grids_equal_on_the_fly(tmp_path, rng):
+    _sequence(tmp_path / "a.h5", rng)
+    _sequence(tmp_path / "b.h5", rng)
+    lazy = PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"], crop=(8, 8), flip=True)
+    cached = PairedWindows(
+        [tmp_path / "a.h5", tmp_path / "b.h5"], crop=(8, 8), flip=True, precompute=True
+    )
+    assert cached._cache is not None and cached._cache.dtype == np.int16
+    for i in range(len(lazy)):
+        for a, b in zip(lazy.item(i, 3), cached.item(i, 3), strict=True):
+            np.testing.assert_array_equal(a, b)
+            assert b.dtype == np.float32

@@ -49,6 +49,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("--val-every", type=int)
     p.add_argument("--checkpoint-every", type=int)
     p.add_argument("--workers", type=int, dest="num_workers", help="data loader processes")
+    p.add_argument(
+        "--precompute",
+        action="store_true",
+        default=None,
+        help="encode every training window once and keep the grids in memory",
+    )
     p.add_argument("--device", help="auto, cpu, cuda, cuda:1 ...")
     p.set_defaults(func=run)
 

@@ -119,6 +119,11 @@ class PairedWindows:
         Random horizontal and vertical flips.
     seed : int
         Seeds the augmentations together with the epoch and the index.
+    precompute : bool
+        Encode every window once, up front, and keep the grids in memory as
+        int16 counts (``2 * bins * H * W * 2`` bytes per window: 2.9 MB at
+        346x260, 9.8 MB at 640x480), so epochs after the first read no files.
+        Counts that do not fit int16 are an error.
 
     Examples
     --------
@@ -142,6 +147,7 @@ class PairedWindows:
         crop: tuple[int, int] | None = None,
         flip: bool = False,
         seed: int = 0,
+        precompute: bool = False,
         input_group: str = "input",
         target_group: str = "gt",
     ) -> None:
@@ -156,6 +162,16 @@ class PairedWindows:
         self.seed = int(seed)
         self.epoch = 0
         self._readers: dict[tuple[Path, str], DsecReader] = {}
+        self._cache: np.ndarray | None = None
+        if precompute:
+            width, height = self.sensor_size
+            cache = np.empty((len(self.windows), 2, self.bins, height, width), dtype=np.int16)
+            for i in range(len(self.windows)):
+                for j, grid in enumerate(self._encode(i)):
+                    if grid.size and np.abs(grid).max() > np.iinfo(np.int16).max:
+                        raise ValueError(f"window {i}: a cell exceeds int16; use precompute=False")
+                    cache[i, j] = grid
+            self._cache = cache
 
     def __len__(self) -> int:
         return len(self.windows)
@@ -172,6 +188,12 @@ class PairedWindows:
 
     def grids(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         """Uncropped ``(input, target)`` grids ``(bins, H, W)`` of window ``index``."""
+        if self._cache is not None:
+            pair = self._cache[index].astype(np.float32)
+            return pair[0], pair[1]
+        return self._encode(index)
+
+    def _encode(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         ref = self.windows[index]
         out = []
         for group in self.groups:
