@@ -5,14 +5,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-HELP = "Run the embedded demo on a synthetic flare scene; writes pictures and files."
+HELP = (
+    "Simulate a flare scene, de-flare it with the bundled model and the baselines; "
+    "write pictures and the metrics table."
+)
 
 
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     """Register the command."""
     p = sub.add_parser("demo", help=HELP, description=HELP, **kwargs)
     p.add_argument("--out", type=Path, default=Path("demo"), help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic scene")
+    p.add_argument("--seed", type=int, default=0, help="which scene (sequence index) to simulate")
     p.set_defaults(func=run)
 
 
