@@ -257,7 +257,6 @@ def _validate(
     model: torch.nn.Module, dataset: PairedWindows, config: TrainConfig, device: torch.device
 ) -> dict[str, float]:
     """Voxel MSE of the model and of the identity on evenly spaced windows, plus event metrics."""
-    from .io.dsec import DsecReader
     from .metrics import segment_metrics
     from .voxel import decode
 
@@ -273,8 +272,7 @@ def _validate(
             sums["val_mse"] += float(np.mean((out - y) ** 2))
             sums["input_mse"] += float(np.mean((x - y) ** 2))
             ref = dataset.windows[int(i)]
-            with DsecReader(ref.path, group=f"{dataset.groups[1]}/events") as reader:
-                gt = reader.read_time(ref.start_us, ref.start_us + config.window_us)
+            gt = dataset.target_events(int(i))
             pred = decode(out, ref.start_us, config.window_us, rng=int(i))
             m = segment_metrics(
                 gt, pred, dataset.sensor_size, ref.start_us, config.window_us, bins=config.bins

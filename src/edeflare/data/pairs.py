@@ -193,6 +193,12 @@ class PairedWindows:
             return pair[0], pair[1]
         return self._encode(index)
 
+    def target_events(self, index: int) -> np.ndarray:
+        """The ground-truth events of window ``index`` (through the dataset's open readers)."""
+        ref = self.windows[index]
+        reader = self._reader(ref.path, self.groups[1])
+        return reader.read_time(ref.start_us, ref.start_us + self.window_us)
+
     def _encode(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         ref = self.windows[index]
         out = []
