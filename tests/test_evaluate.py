@@ -150,6 +150,29 @@ def test_table_reproduces_the_papers_improvement_row():
     assert payload["best"]["tp_f1"] == "E-DeflareNet" and payload["raw"] == "raw"
 
 
+PAPER_TABLE_3 = {  # the ablation, Table 3 of the paper
+    "raw": [1.7855, 0.7170, 0.8158, 0.3431, 0.3266, 0.2299, 0.2915, 0.3093],
+    "Simple": [1.3434, 0.5564, 0.1816, 0.0734, 0.0688, 0.2703, 0.2768, 0.2644],
+    "Simple + Random": [1.5257, 0.6449, 0.1957, 0.0769, 0.0715, 0.2301, 0.2769, 0.2811],
+    "Physical + Random": [1.6811, 0.7203, 0.2020, 0.0834, 0.0788, 0.1567, 0.2001, 0.2103],
+    "No Light": [1.9745, 0.8487, 0.1951, 0.0843, 0.0806, 0.0189, 0.0459, 0.0709],
+    "Full": [1.1368, 0.4651, 0.1741, 0.0690, 0.0644, 0.3498, 0.3386, 0.3011],
+}
+
+
+def test_table_with_a_reference_row_reproduces_the_ablation_improvement_row():
+    values = {k: dict(zip(METRICS, v, strict=True)) for k, v in PAPER_TABLE_3.items()}
+    table = ResultsTable(values, reference="Full")
+    got = [round(table.improvement[m], 1) for m in METRICS]
+    assert got == [15.4, 16.4, 4.1, 6.0, 6.4, 29.4, 22.3, 7.1]
+    # when the reference loses, the row is negative (not the winner's gain)
+    values["Simple"]["chamfer"] = 1.0
+    worse = ResultsTable(values, reference="Full").improvement["chamfer"]
+    assert worse == pytest.approx(-13.68)
+    with pytest.raises(ValueError, match="'Ful'"):
+        ResultsTable(values, reference="Ful")
+
+
 def test_table_with_one_method_has_no_improvement_and_nan_cells():
     table = ResultsTable(
         {"raw": {"chamfer": 1.0}, "only": {"chamfer": float("nan")}}, metrics=["chamfer"]

@@ -6,7 +6,9 @@ the second best in italics; the "Improvement (%)" row gives the best
 method's relative gain over the second best, for lower-is-better metrics
 ``(second - best) / second`` and for higher-is-better ones
 ``(best - second) / second``. With Table 1 of the paper: Chamfer
-``(1.2496 - 0.4477) / 1.2496 = 64.2 %``.
+``(1.2496 - 0.4477) / 1.2496 = 64.2 %``. With a ``reference`` row (Table 3:
+the full configuration against the ablated variants) the row gives that
+row's gain over the best of the others instead, negative where it loses.
 """
 
 from __future__ import annotations
@@ -49,6 +51,9 @@ class ResultsTable:
         Columns (default: the paper's eight).
     raw : str
         Name of the unranked raw-input row.
+    reference : str, optional
+        Give the improvement of this row over the best other ranked row
+        (Table 3) instead of the best over the second best (Tables 1-2).
 
     Examples
     --------
@@ -56,11 +61,20 @@ class ResultsTable:
     ...                   "Ours": {"chamfer": 0.4477}}, metrics=["chamfer"])
     >>> t.best["chamfer"], t.second["chamfer"], round(t.improvement["chamfer"], 1)
     ('Ours', 'PFD-B', 64.2)
+    >>> t = ResultsTable({"Simple": {"r_f1": 0.2703}, "Full": {"r_f1": 0.3498}},
+    ...                  metrics=["r_f1"], reference="Full")
+    >>> round(t.improvement["r_f1"], 1)
+    29.4
     """
 
     values: Mapping[str, Mapping[str, float]]
     metrics: Sequence[str] = METRICS
     raw: str = RAW
+    reference: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.reference is not None and self.reference not in self.values:
+            raise ValueError(f"reference row {self.reference!r} is not in the table")
 
     def _ranked(self, metric: str) -> list[tuple[float, str]]:
         cells = [
@@ -83,14 +97,23 @@ class ResultsTable:
 
     @property
     def improvement(self) -> dict[str, float]:
-        """Metric -> gain (%) of the best over the second best (NaN if undefined)."""
+        """Metric -> gain (%) of the best over the second best (NaN if undefined).
+
+        With ``reference``: the gain of that row over the best of the others.
+        """
         out = {}
         for m in self.metrics:
             ranked = self._ranked(m)
-            if len(ranked) < 2 or ranked[1][0] == 0:
+            if self.reference is not None:
+                own = [v for v, n in ranked if n == self.reference]
+                others = [v for v, n in ranked if n != self.reference]
+                pair = (own[0], others[0]) if own and others else None
+            else:
+                pair = (ranked[0][0], ranked[1][0]) if len(ranked) > 1 else None
+            if pair is None or pair[1] == 0:
                 out[m] = math.nan
                 continue
-            best, second = ranked[0][0], ranked[1][0]
+            best, second = pair
             gain = best - second if HIGHER_IS_BETTER.get(m, False) else second - best
             out[m] = 100.0 * gain / abs(second)
         return out
