@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -114,6 +114,7 @@ def benchmark(
     bins: int = 8,
     seed: int = 0,
     progress: bool = True,
+    on_output: Callable[..., None] | None = None,
 ) -> BenchmarkResult:
     """Run and score every method on every sequence of a split.
 
@@ -128,6 +129,12 @@ def benchmark(
         Row name -> method parameters (for names).
     seed : int
         Seeds methods that draw (voxel, model decoders), per sequence.
+    on_output : callable, optional
+        Called after each method ran on each sequence (untimed), with keyword
+        arguments ``row, path, inputs, gt, output, sensor_size, start_us,
+        end_us, window_us``, e.g. to keep a few windows for figures
+        (:class:`edeflare.report.FigureCollector`). Rows run in order, all
+        rows of a sequence before the next sequence.
     """
     if isinstance(split, (str, os.PathLike)):
         paths = list_sequences(split)
@@ -152,6 +159,18 @@ def benchmark(
             t0 = time.perf_counter()
             pred = method(inp, size, rng=seed * 1_000_003 + k)
             seconds[row] += time.perf_counter() - t0
+            if on_output is not None:
+                on_output(
+                    row=row,
+                    path=path,
+                    inputs=inp,
+                    gt=gt,
+                    output=pred,
+                    sensor_size=size,
+                    start_us=start,
+                    end_us=end,
+                    window_us=window_us,
+                )
             segments = evaluate_streams(
                 gt, pred, size, window_us=window_us, bins=bins, start_us=start, end_us=end
             )
