@@ -29,6 +29,13 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         type=Path,
         help="write the table to this .md file, with .csv and .json beside it",
     )
+    p.add_argument(
+        "--html",
+        type=Path,
+        metavar="DIR",
+        help="write an HTML report (index.html, figures, GIFs, reconstructions) into DIR",
+    )
+    p.add_argument("--samples", type=int, default=4, help="sample windows in the HTML report")
     p.set_defaults(func=run)
 
 
@@ -42,7 +49,15 @@ def run(args: argparse.Namespace) -> int:
         params["model"] = {"decoder": args.decoder}
         if args.model is not None:
             params["model"]["weights"] = args.model
-    result = benchmark(args.split, {m: m for m in args.methods}, params=params, seed=args.seed)
+    collector = None
+    if args.html is not None:
+        from ..report import FigureCollector, check_report_dir
+
+        check_report_dir(args.html)
+        collector = FigureCollector(args.samples)
+    result = benchmark(
+        args.split, {m: m for m in args.methods}, params=params, seed=args.seed, on_output=collector
+    )
     table = result.table()
     markdown = table.to_markdown() + "\n" + result.speed_markdown()
     print(markdown, end="")
@@ -58,4 +73,8 @@ def run(args: argparse.Namespace) -> int:
             with atomic_path(path) as tmp:
                 tmp.write_text(text, encoding="utf-8")
         print(f"wrote {report}, {report.with_suffix('.csv')} and {report.with_suffix('.json')}")
+    if collector is not None:
+        from ..report import write_report
+
+        print(f"wrote {write_report(result, args.html, figures=collector.finish())}")
     return 0

@@ -1,0 +1,708 @@
+"""The HTML benchmark report: tables, qualitative grids, GIFs, reconstructions and flare scores.
+
+:func:`write_report` writes a self-contained folder: ``index.html`` (inline
+CSS, no script, no network) beside the PNG and GIF files it shows and a
+``results.json`` with every number. The page holds
+
+- the paper's metrics table (raw input unranked, best **bold**, second best
+  *italic*, improvement row; as :mod:`edeflare.tables`) and the speed table;
+- a qualitative grid like the paper's Figures 4-5: rows are samples, columns
+  the input, each method and the ground truth, events drawn red (ON) / blue
+  (OFF) over 20 ms windows;
+- one short GIF per sample over consecutive windows of its sequence;
+- the downstream view: images reconstructed from each stream by the leaky
+  integrator of :mod:`edeflare.reconstruct`, side by side, and the
+  no-reference flare score of :mod:`edeflare.flare_score` before (input) and
+  after (each method), per sample and as the median over every window of
+  the split.
+
+Samples are chosen deterministically while the benchmark runs
+(:class:`FigureCollector`, the ``on_output`` hook of
+:func:`edeflare.benchmark.benchmark`): each sequence offers its window with
+the most flare -- the largest ``sum |N_input - N_gt|`` over pixels of the
+per-pixel event counts -- and the sequences with the largest amounts are
+kept (ties: earlier sequence first). Only the kept samples' pictures stay in
+memory, never whole streams.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import os
+import statistics
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+
+from . import __version__
+from .benchmark import BenchmarkResult, benchmark
+from .deflare import Method
+from .errors import EventFileError, ParameterError
+from .events import SensorSize
+from .flare_score import FlareGeometry, flare_geometry, flare_score
+from .io._atomic import atomic_path
+from .reconstruct import LeakyIntegrator, display_scale, to_uint8
+from .tables import METRIC_LABELS, ResultsTable
+from .viz import event_frame, grid, save_animation, save_image
+
+__all__ = [
+    "DEFAULT_METHODS",
+    "FigureCollector",
+    "FigureData",
+    "Sample",
+    "check_report_dir",
+    "metrics_table_html",
+    "speed_table_html",
+    "write_report",
+]
+
+DEFAULT_METHODS = ("raw", "voxel", "efr", "pfd-a", "pfd-b", "model")
+"""Rows of a report made straight from a split folder."""
+
+INPUT = "input"
+GT = "ground truth"
+_RAW = "raw"
+_GIF_MAX_WIDTH = 1600
+
+
+@dataclass
+class Sample:
+    """One chosen window of one sequence, as pictures and scores per stream.
+
+    Streams are keyed by column name: ``"input"``, each method row (the
+    ``raw`` row is the input and is left out), ``"ground truth"``.
+    """
+
+    sequence: str
+    order: int
+    window_start_us: int
+    t_start_us: int
+    window_us: int
+    flare_amount: float
+    geometry: FlareGeometry
+    gif_starts: list[int] = field(default_factory=list)
+    frames: dict[str, np.ndarray] = field(default_factory=dict)
+    """Event frame (RGB ``uint8``) of the window."""
+    recon: dict[str, np.ndarray] = field(default_factory=dict)
+    """Reconstruction ``L`` (``float32`` ``(H, W)``) at the window's end."""
+    gif: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    """Event frames of consecutive windows (``gif_starts``)."""
+    scores: dict[str, float] = field(default_factory=dict)
+    """Flare score of ``|L|`` (the reconstruction), on the input's geometry."""
+
+    @property
+    def label(self) -> str:
+        """``"<sequence> <a>-<b> ms"`` (time from the sequence start)."""
+        return _window_label(self.sequence, self.window_start_us, self.t_start_us, self.window_us)
+
+
+def _window_label(sequence: str, start_us: int, t0_us: int, window_us: int) -> str:
+    a = (start_us - t0_us) / 1000
+    return f"{sequence} {a:g}-{a + window_us / 1000:g} ms"
+
+
+@dataclass(frozen=True)
+class FigureData:
+    """What the report's figures need, as collected during a benchmark."""
+
+    columns: list[str]
+    """``input``, the method rows except ``raw``, ``ground truth``."""
+    samples: list[Sample]
+    event_scores: dict[str, list[float]]
+    """Column -> flare score of the event counts of every window of the split."""
+    recon_scores: dict[str, list[float]]
+    """Column -> flare score of the reconstruction at the end of every window."""
+    sensor_size: SensorSize | None
+    cutoff_hz: float
+    contrast: float
+
+    def medians(self) -> dict[str, dict[str, float]]:
+        """``{"events"|"reconstruction": {column: median over defined windows}}``."""
+        return {
+            "events": {c: _median(v) for c, v in self.event_scores.items()},
+            "reconstruction": {c: _median(v) for c, v in self.recon_scores.items()},
+        }
+
+
+def _median(values: Sequence[float]) -> float:
+    vals = [v for v in values if not math.isnan(v)]
+    return float(statistics.median(vals)) if vals else math.nan
+
+
+_CHUNK_WINDOWS = 16  # reconstruction frames held at once per stream
+
+
+class FigureCollector:
+    """Keeps the pictures of the most flared windows while a benchmark runs.
+
+    Pass it as ``on_output`` to :func:`edeflare.benchmark.benchmark`, then
+    call :meth:`finish`. Each sequence offers its window with the most flare
+    (``sum |N_input - N_gt|`` of per-pixel event counts); the ``samples``
+    sequences with the largest amounts are kept, ties to the earlier one.
+    For every window of every sequence and every stream it also computes
+    the flare score (:func:`edeflare.flare_score.flare_score`, geometry
+    located on the input's event counts of the window) of the window's
+    event counts and of ``|L|``, the stream's reconstruction at the window's
+    end (:class:`edeflare.reconstruct.LeakyIntegrator`, run over the whole
+    sequence a few windows at a time).
+
+    Parameters
+    ----------
+    samples : int
+        Rows of the qualitative grid.
+    gif_windows : int
+        Consecutive windows per GIF (around the sample window).
+    cutoff_hz, contrast : float
+        Reconstruction parameters (:func:`edeflare.reconstruct.reconstruct`).
+    source_radius_px, flare_radius_px : float, optional
+        Flare-score radii (:func:`edeflare.flare_score.flare_geometry`).
+
+    Examples
+    --------
+    >>> from edeflare.demo import synthetic_flare_scene
+    >>> scene = synthetic_flare_scene((64, 48), duration_us=40_000, rng=0)
+    >>> c = FigureCollector(samples=1)
+    >>> c(row="pfd-b", path="seq", inputs=scene.observed, gt=scene.clean,
+    ...   output=scene.clean, sensor_size=(64, 48), start_us=0, end_us=40_000, window_us=20_000)
+    >>> data = c.finish()
+    >>> data.columns, len(data.samples), len(data.event_scores["input"])
+    (['input', 'pfd-b', 'ground truth'], 1, 2)
+    """
+
+    def __init__(
+        self,
+        samples: int = 4,
+        gif_windows: int = 5,
+        *,
+        cutoff_hz: float = 5.0,
+        contrast: float = 0.2,
+        source_radius_px: float | None = None,
+        flare_radius_px: float | None = None,
+    ) -> None:
+        if isinstance(samples, bool) or not isinstance(samples, int) or samples < 0:
+            raise ParameterError(f"samples must be an int >= 0, got {samples!r}")
+        if isinstance(gif_windows, bool) or not isinstance(gif_windows, int) or gif_windows < 0:
+            raise ParameterError(f"gif_windows must be an int >= 0, got {gif_windows!r}")
+        # Check the parameters now rather than after the first sequence.
+        LeakyIntegrator((1, 1), cutoff_hz=cutoff_hz, contrast=contrast)
+        self.n_samples = samples
+        self.gif_windows = gif_windows
+        self.cutoff_hz = float(cutoff_hz)
+        self.contrast = float(contrast)
+        self.radii = {"source_radius_px": source_radius_px, "flare_radius_px": flare_radius_px}
+        self._rows: list[str] = []
+        self._samples: list[Sample] = []
+        self._event_scores: dict[str, list[float]] = {INPUT: [], GT: []}
+        self._recon_scores: dict[str, list[float]] = {INPUT: [], GT: []}
+        self._current: str | None = None
+        self._order = -1
+        self._size: SensorSize | None = None
+        self._starts = np.zeros(0, dtype=np.int64)
+        self._window_us = 1
+        self._geometries: list[FlareGeometry] = []
+        self._pending: Sample | None = None
+
+    def __call__(
+        self,
+        *,
+        row: str,
+        path: str | os.PathLike[str],
+        inputs: np.ndarray,
+        gt: np.ndarray,
+        output: np.ndarray,
+        sensor_size: SensorSize,
+        start_us: int,
+        end_us: int,
+        window_us: int,
+    ) -> None:
+        """Take one method's output on one sequence (the benchmark's ``on_output`` hook)."""
+        if row in (INPUT, GT):
+            raise ParameterError(f"a method row may not be called {row!r} in a report")
+        key = os.fspath(path)
+        if key != self._current:
+            self._begin(key, inputs, gt, sensor_size, start_us, end_us, window_us)
+        if row == _RAW:
+            return  # the input itself: its column is "input"
+        if row not in self._rows:
+            self._rows.append(row)
+            self._event_scores[row] = []
+            self._recon_scores[row] = []
+        self._stream(row, output)
+
+    def _index(self, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Window bounds (``n + 1`` indices) and flat pixel indices of a stream."""
+        width = self._size[0] if self._size else 1
+        bounds = np.append(self._starts, self._starts[-1] + self._window_us)
+        idx = np.searchsorted(events["t"], bounds, side="left")
+        flat = events["y"].astype(np.int64) * width + events["x"]
+        return idx, flat
+
+    def _counts(self, flat: np.ndarray, lo: int, hi: int) -> np.ndarray:
+        width, height = self._size or (1, 1)
+        counts = np.bincount(flat[lo:hi], minlength=width * height)
+        return counts.reshape(height, width).astype(np.float64)
+
+    def _begin(
+        self,
+        key: str,
+        inputs: np.ndarray,
+        gt: np.ndarray,
+        size: SensorSize,
+        start: int,
+        end: int,
+        window_us: int,
+    ) -> None:
+        self._current = key
+        self._order += 1
+        self._size = size
+        self._window_us = int(window_us)
+        self._starts = np.arange(int(start), int(end), int(window_us), dtype=np.int64)
+        self._geometries = []
+        self._pending = None
+        if not self._starts.size:
+            return
+        amounts = []
+        idx_in, flat_in = self._index(inputs)
+        idx_gt, flat_gt = self._index(gt)
+        for k in range(self._starts.size):
+            e_in = self._counts(flat_in, idx_in[k], idx_in[k + 1])
+            e_gt = self._counts(flat_gt, idx_gt[k], idx_gt[k + 1])
+            amounts.append(float(np.abs(e_in - e_gt).sum()))
+            self._geometries.append(flare_geometry(e_in, **self.radii))
+        j = int(np.argmax(amounts))  # the first of equal amounts
+        held = [(-s.flare_amount, s.order) for s in self._samples]
+        full = len(held) >= self.n_samples
+        if self.n_samples and not (full and (-amounts[j], self._order) >= max(held)):
+            n = self._starts.size
+            g0 = max(0, min(j - self.gif_windows // 2, n - self.gif_windows))
+            sample = Sample(
+                sequence=Path(key).stem,
+                order=self._order,
+                window_start_us=int(self._starts[j]),
+                t_start_us=int(start),
+                window_us=int(window_us),
+                flare_amount=amounts[j],
+                geometry=self._geometries[j],
+                gif_starts=[int(g) for g in self._starts[g0 : g0 + self.gif_windows]],
+            )
+            self._samples.append(sample)
+            self._samples.sort(key=lambda s: (-s.flare_amount, s.order))
+            del self._samples[self.n_samples :]
+            self._pending = sample
+        self._stream(INPUT, inputs, idx_in, flat_in)
+        self._stream(GT, gt, idx_gt, flat_gt)
+
+    def _stream(
+        self,
+        name: str,
+        events: np.ndarray,
+        idx: np.ndarray | None = None,
+        flat: np.ndarray | None = None,
+    ) -> None:
+        """Score every window of one stream; keep the pictures of the pending sample."""
+        size = self._size
+        n = self._starts.size
+        if size is None or not n:
+            return
+        if idx is None or flat is None:
+            idx, flat = self._index(events)
+        sample = self._pending
+        keep = {sample.window_start_us, *sample.gif_starts} if sample else set()
+        gif: dict[int, np.ndarray] = {}
+        integrator = LeakyIntegrator(size, cutoff_hz=self.cutoff_hz, contrast=self.contrast)
+        ends = self._starts + self._window_us
+        for a in range(0, n, _CHUNK_WINDOWS):
+            b = min(n, a + _CHUNK_WINDOWS)
+            lo = 0 if a == 0 else int(idx[a])  # the state starts with the stream
+            frames = integrator.frames(events[lo : int(idx[b])], ends[a:b])
+            for k in range(a, b):
+                geometry = self._geometries[k]
+                energy = self._counts(flat, idx[k], idx[k + 1])
+                self._event_scores[name].append(flare_score(energy, geometry))
+                score = flare_score(np.abs(frames[k - a]), geometry)
+                self._recon_scores[name].append(score)
+                w = int(self._starts[k])
+                if sample is None or w not in keep:
+                    continue
+                picture = event_frame(events[idx[k] : idx[k + 1]], size)
+                gif[w] = picture
+                if w == sample.window_start_us:
+                    sample.frames[name] = picture
+                    sample.recon[name] = frames[k - a].copy()
+                    sample.scores[name] = score
+        if sample is not None:
+            sample.gif[name] = [gif[g] for g in sample.gif_starts]
+
+    def finish(self) -> FigureData:
+        """The collected figures (samples in decreasing flare, then sequence order)."""
+        columns = [INPUT, *self._rows, GT]
+        return FigureData(
+            columns,
+            list(self._samples),
+            {c: list(self._event_scores[c]) for c in columns},
+            {c: list(self._recon_scores[c]) for c in columns},
+            self._size,
+            self.cutoff_hz,
+            self.contrast,
+        )
+
+
+# ---------------------------------------------------------------------------------------
+# HTML
+
+
+_CSS = """
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.5em auto;
+       max-width: 1400px; padding: 0 1em; color: #222; }
+h1 { font-size: 1.6em; } h2 { margin-top: 1.6em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; }
+th, td { border: 1px solid #bbb; padding: 0.25em 0.6em; text-align: right; }
+th:first-child, td:first-child { text-align: left; }
+thead th { background: #f0f0f0; }
+tr.raw td { color: #777; background: #f4f4f4; }
+tr.improvement td { border-top: 2px solid #888; }
+td strong { color: #1f4fbf; } td em { color: #c0392b; }
+figure { margin: 0.8em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+figcaption { font-size: 0.9em; color: #444; max-width: 60em; }
+.gifs { display: flex; flex-wrap: wrap; gap: 0.8em; }
+.gifs figure { flex: 1 1 40em; }
+.note { color: #555; font-size: 0.9em; max-width: 60em; }
+code { background: #f4f4f4; padding: 0 0.2em; }
+"""
+
+
+def _e(text: object) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def _fmt(value: float, digits: int) -> str:
+    return "–" if value is None or math.isnan(value) else f"{value:.{digits}f}"
+
+
+def metrics_table_html(table: ResultsTable, digits: int = 4) -> str:
+    """The paper's table as HTML: raw row first (gray), best ``<strong>``, second ``<em>``.
+
+    Examples
+    --------
+    >>> t = ResultsTable({"raw": {"chamfer": 2.0}, "a<b": {"chamfer": 1.0},
+    ...                   "c": {"chamfer": 1.5}}, metrics=["chamfer"])
+    >>> "<strong>1.0000</strong>" in metrics_table_html(t), "a&lt;b" in metrics_table_html(t)
+    (True, True)
+    """
+    best, second = table.best, table.second
+    head = "".join(f"<th>{_e(METRIC_LABELS.get(m, m))}</th>" for m in table.metrics)
+    lines = [
+        '<table id="metrics">',
+        f"<thead><tr><th>Method</th>{head}</tr></thead>",
+        "<tbody>",
+    ]
+    raw = table.raw
+    names = [n for n in table.values if n == raw] + [n for n in table.values if n != raw]
+    for name in names:
+        cells = []
+        for m in table.metrics:
+            text = _fmt(float(table.values[name].get(m, math.nan)), digits)
+            if name != raw and name == best[m]:
+                text = f"<strong>{text}</strong>"
+            elif name != raw and name == second[m]:
+                text = f"<em>{text}</em>"
+            cells.append(f"<td>{text}</td>")
+        label = f"{_e(name)} (input)" if name == raw else _e(name)
+        cls = ' class="raw"' if name == raw else ""
+        lines.append(f"<tr{cls}><td>{label}</td>{''.join(cells)}</tr>")
+    imp = table.improvement
+    if any(not math.isnan(v) for v in imp.values()):
+        cells = "".join(
+            f"<td>{'–' if math.isnan(imp[m]) else f'{imp[m]:.1f}%'}</td>" for m in table.metrics
+        )
+        lines.append(f'<tr class="improvement"><td>Improvement (%)</td>{cells}</tr>')
+    lines += ["</tbody>", "</table>"]
+    return "\n".join(lines)
+
+
+def speed_table_html(result: BenchmarkResult) -> str:
+    """Per-method speed: 20 ms windows per second and real-time factor."""
+    lines = [
+        '<table id="speed">',
+        "<thead><tr><th>Method</th><th>windows/s</th><th>real-time factor</th></tr></thead>",
+        "<tbody>",
+    ]
+    for name, s in result.speed.items():
+        lines.append(
+            f"<tr><td>{_e(name)}</td><td>{s.windows_per_s:.2f}</td>"
+            f"<td>{s.real_time_factor:.3g}</td></tr>"
+        )
+    lines += ["</tbody>", "</table>"]
+    return "\n".join(lines)
+
+
+def _score_table(table_id: str, columns: Sequence[str], rows: Sequence[tuple[str, dict]]) -> str:
+    head = "".join(f"<th>{_e(c)}</th>" for c in columns)
+    methods = [c for c in columns if c not in (INPUT, GT)]
+    lines = [f'<table id="{table_id}">', f"<thead><tr><th></th>{head}</tr></thead>", "<tbody>"]
+    for label, values in rows:
+        finite = {c: values[c] for c in methods if not math.isnan(values.get(c, math.nan))}
+        best = min(finite, key=lambda c: finite[c]) if finite else None
+        cells = []
+        for c in columns:
+            text = _fmt(values.get(c, math.nan), 3)
+            cells.append(f"<td><strong>{text}</strong></td>" if c == best else f"<td>{text}</td>")
+        lines.append(f"<tr><td>{_e(label)}</td>{''.join(cells)}</tr>")
+    lines += ["</tbody>", "</table>"]
+    return "\n".join(lines)
+
+
+def _gray(image: np.ndarray) -> np.ndarray:
+    return np.repeat(image[..., None], 3, axis=2)
+
+
+def _fit(image: np.ndarray, max_width: int) -> np.ndarray:
+    h, w = image.shape[:2]
+    if w <= max_width:
+        return image
+    size = (max_width, max(1, round(h * max_width / w)))
+    return np.asarray(Image.fromarray(image).resize(size, Image.Resampling.BOX))
+
+
+def _write_figures(out: Path, figures: FigureData) -> dict[str, Any]:
+    """PNG/GIF files of the figures; returns names for the page."""
+    cols = figures.columns
+    samples = figures.samples
+    names: dict[str, Any] = {"gifs": []}
+    if not samples:
+        return names
+    cells = [s.frames[c] for s in samples for c in cols]
+    row_labels = [s.label for s in samples]
+    save_image(out / "qualitative.png", grid(cells, labels=cols, row_labels=row_labels))
+    names["qualitative"] = "qualitative.png"
+    recon_cells = []
+    for s in samples:
+        ref = s.recon[GT] if np.any(s.recon[GT]) else s.recon[INPUT]
+        scale = display_scale(ref)
+        recon_cells += [_gray(to_uint8(s.recon[c], scale=scale)) for c in cols]
+    save_image(out / "reconstruction.png", grid(recon_cells, labels=cols, row_labels=row_labels))
+    names["reconstruction"] = "reconstruction.png"
+    for k, s in enumerate(samples, start=1):
+        if not s.gif_starts:
+            continue
+        frames = []
+        for i, g in enumerate(s.gif_starts):
+            caption = _window_label(s.sequence, g, s.t_start_us, s.window_us)
+            row = grid([s.gif[c][i] for c in cols], labels=cols, row_labels=[caption])
+            frames.append(_fit(row, _GIF_MAX_WIDTH))
+        name = f"animation_{k}.gif"
+        save_animation(out / name, frames, fps=4)
+        names["gifs"].append((name, s.label))
+    return names
+
+
+def _nan_none(value: float) -> float | None:
+    return None if math.isnan(value) else float(value)
+
+
+def _results_json(result: BenchmarkResult, figures: FigureData | None) -> str:
+    payload: dict[str, Any] = {
+        "edeflare_version": __version__,
+        "table": json.loads(result.table().to_json()),
+        "benchmark": result.to_dict(),
+    }
+    if figures is not None:
+        payload["flare_score"] = {
+            "median_over_windows": {
+                kind: {c: _nan_none(v) for c, v in values.items()}
+                for kind, values in figures.medians().items()
+            },
+            "windows": len(figures.event_scores[INPUT]),
+            "reconstruction": [
+                {
+                    "sequence": s.sequence,
+                    "window_start_us": s.window_start_us,
+                    "flare_amount": s.flare_amount,
+                    "source_xy": list(s.geometry.center),
+                    "scores": {c: _nan_none(v) for c, v in s.scores.items()},
+                }
+                for s in figures.samples
+            ],
+            "cutoff_hz": figures.cutoff_hz,
+            "contrast": figures.contrast,
+        }
+    return json.dumps(payload, indent=2, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+def _page(
+    result: BenchmarkResult, figures: FigureData | None, names: dict[str, Any], title: str
+) -> str:
+    table = result.table()
+    n_files = len(next(iter(result.evaluation.per_file.values()), {}))
+    n_segments = max((s.n_segments for s in result.evaluation.methods.values()), default=0)
+    body = [
+        f"<h1>{_e(title)}</h1>",
+        f'<p class="note">{n_files} sequence(s), {n_segments} segment(s); '
+        f"edeflare {_e(__version__)}. Lower is better for ↓ metrics, higher for ↑; "
+        "among the methods (the raw input is not ranked) the best value is <strong>bold"
+        "</strong> and the second best <em>italic</em>; the last row is the best method's "
+        "gain over the second best.</p>",
+        '<h2 id="metrics-title">Metrics</h2>',
+        metrics_table_html(table),
+        '<h2 id="speed-title">Speed</h2>',
+        '<p class="note">Processing time only (no I/O); real-time factor = processing time '
+        "over stream duration (below 1: faster than real time).</p>",
+        speed_table_html(result),
+    ]
+    if figures is None or not figures.samples:
+        body.append('<p class="note">No figures (no sample windows were collected).</p>')
+    else:
+        cols = figures.columns
+        col_text = ", ".join(_e(c) for c in cols)
+        window_ms = figures.samples[0].window_us / 1000
+        body += [
+            '<h2 id="qualitative-title">Qualitative comparison</h2>',
+            '<figure><a href="qualitative.png"><img src="qualitative.png" '
+            'alt="event frames of the sample windows"></a>',
+            f"<figcaption>Rows: the {len(figures.samples)} windows with the most flare "
+            "(largest per-pixel difference of event counts between input and ground truth, "
+            f"one per sequence). Columns: {col_text}. Events of one {window_ms:g} ms window; "
+            '<span style="color:#dc1e1e">red: ON</span>, '
+            '<span style="color:#1e46dc">blue: OFF</span>.</figcaption></figure>',
+            '<h2 id="animations-title">Animations</h2>',
+            '<div class="gifs">',
+        ]
+        for name, label in names["gifs"]:
+            body.append(
+                f'<figure><img src="{_e(name)}" alt="{_e(label)}">'
+                f"<figcaption>{_e(label)} and the windows around it.</figcaption></figure>"
+            )
+        body.append("</div>")
+        sample_rows = [(s.label, s.scores) for s in figures.samples]
+        sample_rows.append(
+            ("median", {c: _median([s.scores[c] for s in figures.samples]) for c in cols})
+        )
+        medians = figures.medians()
+        n_windows = len(figures.event_scores[INPUT])
+        split_rows = [
+            (f"reconstructed images, median over {n_windows} windows", medians["reconstruction"]),
+            (f"event counts, median over {n_windows} windows", medians["events"]),
+        ]
+        body += [
+            '<h2 id="reconstruction-title">Downstream: image reconstruction</h2>',
+            '<figure><a href="reconstruction.png"><img src="reconstruction.png" '
+            'alt="reconstructed images of the sample windows"></a>',
+            "<figcaption>Images reconstructed from each stream at the end of the sample window "
+            "by a per-pixel leaky integrator (high-pass filter, Scheerlinck et al. 2018) run "
+            "from the start of the sequence: each event adds ±c to the pixel's log intensity "
+            "L, which decays as exp(−α Δt) between events; "
+            f"c = {figures.contrast:g}, α = 2π·{figures.cutoff_hz:g} Hz. Gray: no change; "
+            "each row shares the ground truth's display scale (99th percentile of |L|), so "
+            "flare saturates.</figcaption></figure>",
+            "<h3>Flare score (no reference; lower is less flare)</h3>",
+            '<p class="note">Energy in the annulus around the light source divided by the '
+            "energy of the source (energies above the far-field median). The source is the "
+            "brightest compact region of the input's events in the window, located once and "
+            "used for every column, so the input is the <em>before</em> and each method an "
+            "<em>after</em>. Zero for a source without flare; a method that also erases the "
+            "source scores high. Lowest method in bold. Over every window of the split:</p>",
+            _score_table("flare-split", cols, split_rows),
+            '<p class="note">On the reconstructed images above (|L|):</p>',
+            _score_table("flare-samples", cols, sample_rows),
+        ]
+    body.append(
+        '<p class="note">Every number of this page is in <a href="results.json">'
+        "results.json</a>. See the edeflare documentation (docs/report.md) for the "
+        "definitions.</p>"
+    )
+    return (
+        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        f"<title>{_e(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
+        + "\n".join(body)
+        + "\n</body>\n</html>\n"
+    )
+
+
+def check_report_dir(out_dir: str | os.PathLike[str]) -> Path:
+    """``out_dir`` as a path; an error if it exists and is not a folder (check before long work).
+
+    Examples
+    --------
+    >>> check_report_dir("report").name
+    'report'
+    """
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise EventFileError(out, "exists and is not a folder (the HTML report is a folder)")
+    return out
+
+
+def write_report(
+    source: BenchmarkResult | str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    *,
+    figures: FigureData | None = None,
+    methods: Mapping[str, str | Method] | None = None,
+    params: Mapping[str, Mapping[str, Any]] | None = None,
+    seed: int = 0,
+    samples: int = 4,
+    gif_windows: int = 5,
+    cutoff_hz: float = 5.0,
+    contrast: float = 0.2,
+    title: str = "edeflare benchmark report",
+    progress: bool = True,
+) -> Path:
+    """Write the HTML report folder; return the path of its ``index.html``.
+
+    Parameters
+    ----------
+    source : BenchmarkResult or path-like
+        A finished benchmark (give its ``figures`` from a
+        :class:`FigureCollector` passed as ``on_output``; without them the
+        page has the tables only), or a split folder to benchmark now.
+    out_dir : path-like
+        Folder to write ``index.html``, ``results.json``, ``qualitative.png``,
+        ``reconstruction.png`` and ``animation_<k>.gif`` into (created if
+        needed; other files in it are left alone). Every file is written
+        atomically and ``index.html`` last, so a page never links to a
+        missing or half-written file.
+    methods, params, seed :
+        With a split folder: rows to run (default :data:`DEFAULT_METHODS`),
+        as :func:`edeflare.benchmark.benchmark`.
+    samples, gif_windows, cutoff_hz, contrast :
+        With a split folder: the :class:`FigureCollector` settings.
+    title : str
+        Page title.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.demo import synthetic_flare_scene
+    >>> from edeflare.io.dsec import write_dsec_groups
+    >>> split = pathlib.Path(tempfile.mkdtemp())
+    >>> s = synthetic_flare_scene((64, 48), duration_us=40_000, rng=0)
+    >>> write_dsec_groups(split / "s0.h5", {"input": s.observed, "gt": s.clean}, (64, 48))
+    >>> page = write_report(split, split / "report", methods={"raw": "raw", "pfd-b": "pfd-b"},
+    ...                     progress=False)
+    >>> page.name, (page.parent / "qualitative.png").exists()
+    ('index.html', True)
+    """
+    out = check_report_dir(out_dir)
+    if isinstance(source, BenchmarkResult):
+        result = source
+    else:
+        collector = FigureCollector(samples, gif_windows, cutoff_hz=cutoff_hz, contrast=contrast)
+        rows = methods if methods is not None else {m: m for m in DEFAULT_METHODS}
+        result = benchmark(
+            source, rows, params=params, seed=seed, progress=progress, on_output=collector
+        )
+        figures = collector.finish()
+    out.mkdir(parents=True, exist_ok=True)
+    names = _write_figures(out, figures) if figures is not None else {"gifs": []}
+    with atomic_path(out / "results.json") as tmp:
+        tmp.write_text(_results_json(result, figures), encoding="utf-8")
+    page = out / "index.html"
+    with atomic_path(page) as tmp:
+        tmp.write_text(_page(result, figures, names, title), encoding="utf-8")
+    return page
