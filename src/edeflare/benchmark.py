@@ -23,7 +23,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from .data.pairs import list_sequences
+from .data.pairs import check_paired, list_sequences
 from .deflare import Method, create_method
 from .evaluate import Evaluation, Summary, combine_summaries, evaluate_streams, summarize
 from .io.dsec import DsecReader
@@ -88,6 +88,7 @@ class BenchmarkResult:
 
 def read_sequence(path: str | os.PathLike[str]) -> tuple[Any, Any, tuple[int, int], int, int]:
     """``(input events, gt events, sensor_size, t_start_us, t_end_us)`` of a sequence file."""
+    check_paired(path)
     with DsecReader(path, group="input/events") as reader:
         inp = reader.read()
         size = reader.recorded_sensor_size

@@ -1,4 +1,8 @@
-"""``edeflare simulate OUT``: generate a paired dataset (parallel, sharded, resumable)."""
+"""``edeflare simulate OUT``: generate a paired dataset (parallel, sharded, resumable).
+
+Also the test sets ``eflare-r-sim`` / ``eflare-r-sim-mini`` (the paper's real-capture
+model, simulated) and ``dsec-flare`` (windows of a local DSEC copy, ``--dsec-root``).
+"""
 
 from __future__ import annotations
 
@@ -18,14 +22,21 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help=HELP,
         description=HELP + " Writes OUT/train/*.h5, OUT/test/*.h5 and OUT/manifest.json. "
         "Options left unset take the recipe's values. Rerun the same command to resume; "
-        "use --shard i/n for array jobs.",
+        "use --shard i/n for array jobs. The test-set recipes put every sequence in OUT/test: "
+        "eflare-r-sim(-mini) simulates lit sources (point light, square lamp, strobe) behind "
+        "a star or random-pattern filter and the clean lens, one sensor draw per pair; "
+        "dsec-flare cuts the paper's DSEC-Flare windows from your DSEC copy "
+        "(--dsec-root; nothing is downloaded) into files with an input group only "
+        "(no ground truth: for edeflare deflare / view, not for benchmark).",
         **kwargs,
     )
     p.add_argument("out", type=Path, help="dataset folder")
     p.add_argument(
         "--recipe",
         default="eflare-mini",
-        help="eflare-2.7k (the paper's: 544 x 100 ms at 640x480) or eflare-mini (120 at 346x260)",
+        help="eflare-2.7k (the paper's: 544 x 100 ms at 640x480), eflare-mini (120 at 346x260); "
+        "test sets: eflare-r-sim (30 at 640x480), eflare-r-sim-mini (20 at 346x260), "
+        "dsec-flare (15 DSEC windows of 100 ms at 640x480, needs --dsec-root)",
     )
     p.add_argument("--sequences", type=int, help="number of sequences")
     p.add_argument("--test-sequences", type=int, help="sequences in the test split (the last ones)")
@@ -56,6 +67,23 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         action="store_true",
         help="store only input and gt (not the pure flare, light and background streams)",
     )
+    g = p.add_argument_group("dsec-flare")
+    g.add_argument(
+        "--dsec-root",
+        type=Path,
+        metavar="PATH",
+        help="local DSEC folder holding <seq>/events/left/events.h5 (or train|test/<seq>/...)",
+    )
+    g.add_argument(
+        "--dsec-window",
+        action="append",
+        metavar="SEQ[:SECONDS[:COUNT]]",
+        help="COUNT (3) windows of 100 ms centred on SECONDS (default: mid-recording) of a "
+        "sequence; repeat it; replaces the default windows (3 around 7.6 s of "
+        "zurich_city_03_a and 26 s of zurich_city_09_c, 3 mid-recording of zurich_city_10_b, "
+        "zurich_city_12_a, zurich_city_09_d)",
+    )
+    g.add_argument("--rectify", action="store_true", help="move events by DSEC's rectify_map.h5")
     p.add_argument("--workers", type=int, default=1, help="worker processes")
     p.add_argument(
         "--shard", default="0/1", metavar="I/N", help="make sequences with index %% N == I"
@@ -66,11 +94,30 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the recipe from the options, generate, print a summary."""
+    from ..data.dsec_flare import parse_window
     from ..data.generate import RECIPES, generate_dataset
     from ..errors import ParameterError
 
     if args.recipe not in RECIPES:
         raise ParameterError(f"unknown recipe {args.recipe!r}; choose one of {sorted(RECIPES)}")
+    base = RECIPES[args.recipe]
+    misplaced = {
+        "--test-sequences": base.kind != "flare" and args.test_sequences is not None,
+        "--sequences": base.kind == "dsec" and args.sequences is not None,
+        "--variant": base.kind != "flare" and args.variant is not None,
+        "--flare7k": base.kind != "flare" and args.flare7k is not None,
+        "--no-components": base.kind != "flare" and args.no_components,
+        "--background": base.kind == "dsec" and bool(args.background),
+        "--dsec-root": base.kind != "dsec" and args.dsec_root is not None,
+        "--dsec-window": base.kind != "dsec" and bool(args.dsec_window),
+        "--rectify": base.kind != "dsec" and args.rectify,
+    }
+    bad = [name for name, wrong in misplaced.items() if wrong]
+    if bad:
+        raise ParameterError(
+            f"option(s) {', '.join(bad)} do not apply to --recipe {args.recipe} (test sets "
+            "put every sequence in test/; dsec-flare's windows set the number of sequences)"
+        )
     changes: dict[str, object] = {}
     for key in ("sequences", "test_sequences", "sensor_size", "variant", "weights", "seed"):
         if getattr(args, key) is not None:
@@ -84,7 +131,14 @@ def run(args: argparse.Namespace) -> int:
         changes["flare7k"] = str(args.flare7k)
     if args.no_components:
         changes["components"] = False
-    recipe = dataclasses.replace(RECIPES[args.recipe], **changes)
+    if base.kind == "dsec":
+        dsec = base.dsec
+        if args.dsec_root is not None:
+            dsec = dataclasses.replace(dsec, root=str(args.dsec_root))
+        if args.dsec_window:
+            dsec = dataclasses.replace(dsec, windows=tuple(map(parse_window, args.dsec_window)))
+        changes["dsec"] = dataclasses.replace(dsec, rectify=args.rectify)
+    recipe = dataclasses.replace(base, **changes)
     report = generate_dataset(
         recipe, args.out, workers=args.workers, shard=args.shard, progress=not args.no_progress
     )

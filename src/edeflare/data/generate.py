@@ -37,6 +37,16 @@ time between frames); compose the pair (:func:`edeflare.sim.compose.compose_pair
 or for ``variant="forward"`` simulate the sums :math:`I_{bg} + I_f` and
 :math:`I_{bg} + I_{light}`, which needs a synthetic background).
 
+Kinds. A recipe's ``kind`` says what a sequence is: ``"flare"`` (above: the
+training pipeline), ``"optics"`` (the paper's model of its real captures,
+:mod:`edeflare.data.eflare_r_sim`: ``eflare-r-sim`` and ``eflare-r-sim-mini``,
+files with ``input`` and ``gt`` only) or ``"dsec"`` (windows of the user's
+DSEC copy, :mod:`edeflare.data.dsec_flare`: ``dsec-flare``, files with an
+``input`` group only, no ground truth). Both new kinds are test sets: every
+sequence goes to ``test/``. Their files record ``kind`` and their provenance
+(:class:`~edeflare.sim.optics_scene.OpticsScene` or
+:class:`~edeflare.data.dsec_flare.DsecWindow` JSON) as ``script``.
+
 Runs are parallel (a ``spawn`` process pool; numba and ``fork`` do not mix),
 sharded (``shard=(i, n)`` makes the sequences with ``index % n == i``, for array
 jobs; the run that finds every file present writes ``manifest.json``, the
@@ -87,12 +97,23 @@ from ..sim.compose import (
     CountIntensity,
     compose_pair,
 )
+from ..sim.optics_scene import OpticsScene, OpticsSceneConfig
 from ..sim.render import Renderer, flare7k_names
 from ..sim.script import FlareScript, ScriptConfig, draw_script
 from ..sim.stage1 import sensor_pair
+from .dsec_flare import (
+    DsecFlareConfig,
+    DsecFlareError,
+    DsecWindow,
+    dsec_sequence,
+    expand_windows,
+    find_dsec_sequences,
+)
+from .eflare_r_sim import optics_sequence
 
 __all__ = [
     "GROUPS",
+    "KINDS",
     "RECIPES",
     "STAGES",
     "GenerationReport",
@@ -116,6 +137,8 @@ WEIGHTS = ("intensity", "accumulation", "counts")
 """PNL-ES intensities: rendered videos (and the scene or the accumulation estimate for the
 background), the accumulation estimate for the background even when synthetic, or the
 authors' whole-window event counts for all three streams."""
+KINDS = ("flare", "optics", "dsec")
+"""What a recipe's sequences are: simulated training pairs, optics test pairs, DSEC windows."""
 _ALL_VARIANTS = (*VARIANTS, "forward")
 _FORMAT = "edeflare-dataset/1"
 
@@ -162,6 +185,14 @@ class Recipe:
         Ranges of the synthetic backgrounds.
     accumulation : AccumulationParams
         The background intensity estimator (recorded backgrounds).
+    kind : {"flare", "optics", "dsec"}
+        See :data:`KINDS`. For ``"optics"`` and ``"dsec"`` every sequence is a
+        test sequence (``test_sequences`` follows ``sequences``), and for
+        ``"dsec"`` the windows set ``sequences``.
+    optics : OpticsSceneConfig
+        Ranges of the optics scenes (kind ``"optics"``).
+    dsec : DsecFlareConfig
+        DSEC folder and windows (kind ``"dsec"``).
 
     Examples
     --------
@@ -192,10 +223,19 @@ class Recipe:
     script: ScriptConfig = field(default_factory=ScriptConfig)
     scene: SceneConfig = field(default_factory=SceneConfig)
     accumulation: AccumulationParams = field(default_factory=AccumulationParams)
+    kind: str = "flare"
+    optics: OpticsSceneConfig = field(default_factory=OpticsSceneConfig)
+    dsec: DsecFlareConfig = field(default_factory=DsecFlareConfig)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ParameterError(f"recipe name must be a non-empty string, got {self.name!r}")
+        if self.kind not in KINDS:
+            raise ParameterError(f"kind must be one of {KINDS}, got {self.kind!r}")
+        if self.kind == "dsec" and isinstance(self.dsec, DsecFlareConfig):
+            object.__setattr__(self, "sequences", len(expand_windows(self.dsec.windows)))
+        if self.kind != "flare":  # test sets only
+            object.__setattr__(self, "test_sequences", self.sequences)
         for key in ("sequences", "test_sequences", "duration_us", "window_us", "seed"):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
@@ -236,7 +276,13 @@ class Recipe:
             )
         if not (math.isfinite(float(self.jitter_us)) and self.jitter_us >= 0):
             raise ParameterError(f"jitter_us must be >= 0, got {self.jitter_us!r}")
-        kinds = {"script": ScriptConfig, "scene": SceneConfig, "accumulation": AccumulationParams}
+        kinds = {
+            "script": ScriptConfig,
+            "scene": SceneConfig,
+            "accumulation": AccumulationParams,
+            "optics": OpticsSceneConfig,
+            "dsec": DsecFlareConfig,
+        }
         for key, kind in kinds.items():
             if not isinstance(getattr(self, key), kind):
                 raise ParameterError(f"{key} must be a {kind.__name__}")
@@ -264,6 +310,8 @@ class Recipe:
             "script": ScriptConfig,
             "scene": SceneConfig,
             "accumulation": AccumulationParams,
+            "optics": OpticsSceneConfig,
+            "dsec": DsecFlareConfig,
         }
         for key, kind in nested.items():
             if key in d and isinstance(d[key], Mapping):
@@ -278,8 +326,20 @@ class Recipe:
         return cls(**d)
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict (:meth:`from_dict` round-trips it)."""
-        return json.loads(json.dumps(dataclasses.asdict(self)))
+        """A JSON-ready dict (:meth:`from_dict` round-trips it).
+
+        Settings of the other kinds are left out (so flare recipes keep the
+        dicts and digests they had before kinds existed).
+        """
+        d = {f.name: _asdict(getattr(self, f.name)) for f in dataclasses.fields(self)}
+        d["optics"], d["dsec"] = self.optics.to_dict(), self.dsec.to_dict()
+        if self.kind == "flare":
+            del d["kind"]
+        if self.kind != "optics":
+            del d["optics"]
+        if self.kind != "dsec":
+            del d["dsec"]
+        return json.loads(json.dumps(d))
 
     def identity(self) -> dict[str, Any]:
         """:meth:`to_dict` with input paths reduced to names that do not depend on their place.
@@ -293,6 +353,8 @@ class Recipe:
             relative_names(self.background_files) if self.background_files else []
         )
         d["flare7k"] = None if self.flare7k is None else Path(self.flare7k).name
+        if "dsec" in d:  # the same DSEC data anywhere gives the same dataset
+            d["dsec"]["root"] = None
         return d
 
     def sha256(self) -> str:
@@ -301,14 +363,38 @@ class Recipe:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
+def _asdict(value: Any) -> Any:
+    return dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
+
+
+# A slowly moving camera for the optics test sets (E-Flare-R's camera stands still; a
+# little motion gives the background events to keep).
+_SLOW_STREET = SceneConfig(pan_px_per_s=(10.0, 120.0), zoom_per_s=(0.0, 0.3), shake_px=(0.0, 1.0))
+
 RECIPES: dict[str, Recipe] = {
     "eflare-2.7k": Recipe(name="eflare-2.7k"),
     "eflare-mini": Recipe(
         name="eflare-mini", sequences=120, test_sequences=12, sensor_size=(346, 260)
     ),
+    "eflare-r-sim": Recipe(
+        name="eflare-r-sim", kind="optics", sequences=30, sensor_size=(640, 480), scene=_SLOW_STREET
+    ),
+    "eflare-r-sim-mini": Recipe(
+        name="eflare-r-sim-mini",
+        kind="optics",
+        sequences=20,
+        sensor_size=(346, 260),
+        scene=_SLOW_STREET,
+    ),
+    "dsec-flare": Recipe(name="dsec-flare", kind="dsec", sensor_size=(640, 480)),
 }
 """Named recipes: the paper's E-Flare-2.7K (synthetic backgrounds unless files are given),
-and a small one (120 sequences of 100 ms at 346x260: 540 training and 60 test windows)."""
+and a small one (120 sequences of 100 ms at 346x260: 540 training and 60 test windows);
+the optics test sets after E-Flare-R's physical model, ``eflare-r-sim`` (30 sequences of
+100 ms at 640x480, the paper's crop: 150 test windows, as E-Flare-R's 150 pairs) and
+``eflare-r-sim-mini`` (20 at 346x260: 100 test windows); and ``dsec-flare``, the paper's
+DSEC-Flare windows (15 of 100 ms at 640x480 by default) cut from a local DSEC copy
+(``dsec=DsecFlareConfig(root=...)``), without ground truth."""
 
 
 def list_recipes() -> list[str]:
@@ -317,7 +403,7 @@ def list_recipes() -> list[str]:
     Examples
     --------
     >>> list_recipes()
-    ['eflare-2.7k', 'eflare-mini']
+    ['dsec-flare', 'eflare-2.7k', 'eflare-mini', 'eflare-r-sim', 'eflare-r-sim-mini']
     """
     return sorted(RECIPES)
 
@@ -349,11 +435,13 @@ class SequenceData:
     ----------
     index : int
     streams : dict
-        ``{"input", "gt", "flare", "light", "background"} -> events``.
-    components : Components
+        ``{"input", "gt", "flare", "light", "background"} -> events`` (kind
+        ``"optics"``: input and gt; ``"dsec"``: input).
+    components : Components or None
         The pure streams and their intensities at each other's events, as
-        weighted by the recipe (to recompose with other variants or draws).
-    script : FlareScript
+        weighted by the recipe (to recompose with other variants or draws);
+        None for the other kinds.
+    script : FlareScript, OpticsScene or DsecWindow
     background : dict
         The background's provenance.
     sensor_size : (width, height)
@@ -364,8 +452,8 @@ class SequenceData:
 
     index: int
     streams: dict[str, np.ndarray]
-    components: Components
-    script: FlareScript
+    components: Components | None
+    script: FlareScript | OpticsScene | DsecWindow
     background: dict[str, Any]
     sensor_size: SensorSize
     t_start_us: int
@@ -499,6 +587,20 @@ def generate_sequence(
     (True, 20000)
     """
     index = _check_index(recipe, index)
+    if recipe.kind != "flare":
+        if recipe.kind == "optics":
+            recorded = recipe.background == "recorded"
+            made = optics_sequence(
+                recipe, index, (source or _source_for(recipe)) if recorded else None
+            )
+        else:
+            made = dsec_sequence(recipe, index)
+        streams, provenance, described, seconds = made
+        timings = dict.fromkeys(STAGES, 0.0) | seconds
+        return SequenceData(
+            index, streams, None, provenance, described, recipe.sensor_size, 0,
+            recipe.duration_us, timings,
+        )  # fmt: skip
     timer = _Timer()
     size, duration = recipe.sensor_size, recipe.duration_us
     with timer("background"):
@@ -634,6 +736,7 @@ def write_sequence(
     """Write one sequence file atomically; return its manifest entry (counts, size, SHA-256)."""
     path = Path(path)
     groups = GROUPS if recipe.components else ("input", "gt")
+    groups = tuple(g for g in groups if g in data.streams)
     attrs = {
         "t_start_us": np.int64(data.t_start_us),
         "t_end_us": np.int64(data.t_end_us),
@@ -646,6 +749,9 @@ def write_sequence(
         "variant": recipe.variant,
         "edeflare_version": __version__,
     }
+    if recipe.kind != "flare":  # no composition variant; say what the file is instead
+        del attrs["variant"]
+        attrs["kind"] = recipe.kind
     write_dsec_groups(path, {g: data.streams[g] for g in groups}, data.sensor_size, attrs)
     return _entry(path, recipe, data.index)
 
@@ -836,7 +942,9 @@ def generate_dataset(
     own_path = (
         manifest_path if shard_n == 1 else out / f"manifest.shard-{shard_i}-of-{shard_n}.json"
     )
-    if todo:
+    if todo and recipe.kind == "dsec":  # find the DSEC files here: errors surface early
+        _check_dsec(recipe)
+    elif todo:
         _source_for(recipe)  # open the background files once here: errors surface early
     stage_seconds = dict.fromkeys(STAGES, 0.0)
     bar = _progress(len(mine), skipped, recipe.name, progress)
@@ -879,6 +987,15 @@ def generate_dataset(
     return GenerationReport(
         manifest, target, len(todo), skipped, stage_seconds, time.perf_counter() - start
     )
+
+
+def _check_dsec(recipe: Recipe) -> None:
+    if recipe.dsec.root is None:
+        raise DsecFlareError(
+            f"recipe {recipe.name!r} needs the local DSEC folder: --dsec-root PATH "
+            "(or dsec=DsecFlareConfig(root=...))"
+        )
+    find_dsec_sequences(recipe.dsec.root, recipe.dsec.sequences)
 
 
 def _check_existing_manifest(path: Path, recipe: Recipe) -> None:

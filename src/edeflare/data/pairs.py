@@ -9,7 +9,9 @@ events). A dataset folder holds ``train/`` and ``test/`` folders of them.
 
 :class:`PairedWindows` cuts every sequence into aligned windows (default
 20 ms) and returns ``(input, target)`` voxel grids ``(1, bins, H, W)``,
-optionally randomly cropped and flipped. Augmentations are drawn from a
+optionally randomly cropped and flipped. Files without a ``gt`` group (the
+``dsec-flare`` recipe's real windows) are refused by :func:`check_paired`
+with a message saying what they are for. Augmentations are drawn from a
 generator seeded by ``(seed, epoch, index)``, so a sample is the same on any
 worker, rank or resume.
 """
@@ -21,6 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from ..errors import EventFileError
@@ -28,7 +31,7 @@ from ..events import SensorSize, window_start_for
 from ..io.dsec import DsecReader
 from ..voxel import encode
 
-__all__ = ["PairedWindows", "WindowRef", "list_sequences", "sequence_windows"]
+__all__ = ["PairedWindows", "WindowRef", "check_paired", "list_sequences", "sequence_windows"]
 
 
 @dataclass(frozen=True)
@@ -50,8 +53,44 @@ def list_sequences(folder: str | os.PathLike[str]) -> list[Path]:
     return files
 
 
+def check_paired(path: str | os.PathLike[str], groups: Sequence[str] = ("input", "gt")) -> None:
+    """Raise :class:`~edeflare.errors.EventFileError` unless the file holds every event group.
+
+    A sequence without ground truth (e.g. a ``dsec-flare`` window, ``input``
+    only) gets a message that says what it can be used for instead.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.events import make_events
+    >>> from edeflare.io.dsec import write_dsec_groups
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "real.h5"
+    >>> write_dsec_groups(p, {"input": make_events([0], [0], [0], [1])}, (2, 2))
+    >>> check_paired(p)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.EventFileError: ...real.h5: holds no 'gt' events (no ground truth: ...
+    """
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            missing = [g for g in groups if not isinstance(f.get(f"{g}/events"), h5py.Group)]
+    except OSError as exc:
+        raise EventFileError(path, f"not a readable HDF5 file ({exc})") from None
+    if missing == ["gt"]:
+        raise EventFileError(
+            path,
+            "holds no 'gt' events (no ground truth: a real sequence such as a dsec-flare "
+            "window, for qualitative evaluation); de-flare its input with `edeflare deflare` "
+            "and look at it with `edeflare view` instead",
+        )
+    if missing:
+        raise EventFileError(path, f"holds no {missing} event group(s); not a paired sequence")
+
+
 def _span(path: Path, groups: Sequence[str]) -> tuple[SensorSize, int, int] | None:
     """Sensor size and ``[start, end)`` of a sequence (None when it holds no events)."""
+    check_paired(path, groups)
     starts, ends = [], []
     size: SensorSize | None = None
     for group in groups:
