@@ -14,8 +14,7 @@ DOCS = ROOT / "docs"
 # [text](target) and ![alt](target), target up to a space or ")"; [label]: target definitions.
 _INLINE = re.compile(r"!?\[[^\]]*\]\(\s*(?:<([^>]+)>|([^)\s]+))(?:\s+\"[^\"]*\")?\s*\)")
 _DEFINITION = re.compile(r"^\s{0,3}\[[^\]]+\]:\s*<?(\S+?)>?(?:\s+.*)?$", re.MULTILINE)
-_FENCE = re.compile(r"^(\s*)(```|~~~).*?^\1\2[^\n]*$", re.MULTILINE | re.DOTALL)
-_CODE_SPAN = re.compile(r"(`+)(?:(?!\1).)+?\1", re.DOTALL)
+_CODE_SPAN = re.compile(r"(`+)(?:(?!\1).)+?\1")  # within one line
 _EXTERNAL = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*:")  # http:, https:, mailto:, ...
 
 
@@ -32,9 +31,23 @@ def _markdown_files() -> list[Path]:
     return [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]
 
 
+def _strip_fences(text: str) -> str:
+    """The text without fenced code blocks (``` or ~~~ fences, any indentation)."""
+    kept, fence = [], None
+    for line in text.splitlines():
+        marker = line.lstrip()[:3]
+        if fence is None and marker in ("```", "~~~"):
+            fence = marker
+        elif fence is not None and marker == fence:
+            fence = None
+        elif fence is None:
+            kept.append(line)
+    return "\n".join(kept)
+
+
 def _links(text: str) -> list[str]:
     """Link targets outside code blocks and code spans."""
-    text = _CODE_SPAN.sub("", _FENCE.sub("", text))
+    text = _CODE_SPAN.sub("", _strip_fences(text))
     inline = [angle or bare for angle, bare in _INLINE.findall(text)]
     return inline + _DEFINITION.findall(text)
 
@@ -45,8 +58,10 @@ def test_link_extraction():
         "`[not](code.md)`\n"
         "```text\n[not](fenced.md)\n```\n"
         "[ref]: ref.md\n"
+        "  ```console\n  $ [not](indented.md)\n  ```\n"
+        "Text with `one` and `two` code spans, then [c](c.md).\n"
     )
-    assert _links(text) == ["docs/a.md", "pic.png", "b c.md", "ref.md"]
+    assert _links(text) == ["docs/a.md", "pic.png", "b c.md", "c.md", "ref.md"]
 
 
 def test_cli_reference_is_current():
@@ -72,14 +87,44 @@ def test_cli_reference_covers_every_command():
     assert not missing, f"docs/cli.md lacks {missing}: run python docs/make_cli_reference.py"
 
 
+def _anchors(text: str) -> set[str]:
+    """GitHub's anchors of the headings of a Markdown text (``-1``, ``-2``... for repeats)."""
+    seen: dict[str, int] = {}
+    anchors = set()
+    for line in _strip_fences(text).splitlines():
+        heading = re.match(r"^\s{0,3}#{1,6}\s+(.*?)\s*#*\s*$", line)
+        if not heading:
+            continue
+        slug = re.sub(r"[^\w\- ]", "", heading.group(1).lower()).replace(" ", "-")
+        n = seen.get(slug, 0)
+        seen[slug] = n + 1
+        anchors.add(slug if n == 0 else f"{slug}-{n}")
+    return anchors
+
+
+def test_anchor_slugs():
+    text = "# A\n## Decoding: `paper` and `keep`\n## 5. Look at it\n### I/O\n## A\n```\n# no\n```\n"
+    assert _anchors(text) == {"a", "decoding-paper-and-keep", "5-look-at-it", "io", "a-1"}
+
+
 @pytest.mark.parametrize("page", _markdown_files(), ids=lambda p: str(p.relative_to(ROOT)))
 def test_relative_links_resolve(page: Path):
+    """Every relative link names an existing file, and a heading of it when it has #anchor."""
     broken = []
-    for target in _links(page.read_text(encoding="utf-8")):
-        if _EXTERNAL.match(target) or target.startswith("#"):
+    text = page.read_text(encoding="utf-8")
+    for target in _links(text):
+        if _EXTERNAL.match(target):
             continue
-        path = target.split("#", 1)[0].split("?", 1)[0]
-        resolved = (ROOT / path.lstrip("/")) if path.startswith("/") else (page.parent / path)
+        path, _, anchor = target.split("?", 1)[0].partition("#")
+        if not path:
+            resolved = page
+        elif path.startswith("/"):
+            resolved = ROOT / path.lstrip("/")
+        else:
+            resolved = page.parent / path
         if not resolved.exists():
             broken.append(target)
-    assert not broken, f"{page.relative_to(ROOT)} links to missing files: {broken}"
+        elif anchor and resolved.suffix == ".md":
+            if anchor not in _anchors(resolved.read_text(encoding="utf-8")):
+                broken.append(f"{target} (no such heading)")
+    assert not broken, f"{page.relative_to(ROOT)} has broken links: {broken}"
