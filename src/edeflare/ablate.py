@@ -18,8 +18,10 @@ Full (``physical``)       PNL-ES (the paper's method)
 
 One model per variant is trained with the same preset, iterations, batch,
 crops and seed (equal budgets), then every model is scored on one test set
-that none of them was trained on: by default the optics-based paired set
-(recipe ``eflare-r-sim``), the stand-in for the paper's real captures. The
+that none of them was trained on: by default an optics-based paired set
+(recipes ``eflare-r-sim`` / ``eflare-r-sim-mini``: star-filter observation,
+clean-lens ground truth), the stand-in for the paper's real captures
+(E-Flare-R); ``test_split`` takes real pairs made with ``edeflare pair``. The
 table has the raw input row (unranked) and an improvement row giving the
 full configuration's gain over the best ablated variant.
 
@@ -46,6 +48,7 @@ from .data.pairs import list_sequences
 from .errors import ParameterError
 from .io._atomic import atomic_path
 from .sim.background import SceneConfig
+from .sim.optics_scene import OpticsSceneConfig
 from .sim.script import ScriptConfig
 from .tables import ResultsTable
 from .train import TRAIN_PRESETS, TrainConfig, train
@@ -155,18 +158,6 @@ class AblationConfig:
         }
 
 
-def _test_recipe(name: str, **changes: Any) -> Recipe:
-    # The optics-based test recipe when this install has it, else a held-out
-    # seed of the training recipe's family (recorded in ablation.json either way).
-    base = RECIPES.get(name)
-    if base is None:
-        base = dataclasses.replace(
-            RECIPES["eflare-mini"], name=f"{name}-standin", seed=9999, sequences=20
-        )
-        changes.setdefault("test_sequences", changes.get("sequences", base.sequences))
-    return dataclasses.replace(base, **changes)
-
-
 def _ablations() -> dict[str, AblationConfig]:
     small_recipe = Recipe(
         name="ablate-small",
@@ -179,7 +170,13 @@ def _ablations() -> dict[str, AblationConfig]:
         scene=SceneConfig(fps=1000.0),
     )
     small_test = dataclasses.replace(
-        small_recipe, name="ablate-small-test", sequences=3, test_sequences=3, seed=9999
+        RECIPES["eflare-r-sim-mini"],
+        name="ablate-small-test",
+        sequences=3,
+        duration_us=20_000,
+        sensor_size=(64, 48),
+        seed=9999,
+        optics=OpticsSceneConfig(psf_grid=128),
     )
     cpu = TRAIN_PRESETS["cpu"]
     return {
@@ -200,13 +197,13 @@ def _ablations() -> dict[str, AblationConfig]:
         "cpu": AblationConfig(
             "cpu",
             dataclasses.replace(RECIPES["eflare-mini"], test_sequences=0, seed=2026),
-            _test_recipe("eflare-r-sim"),
+            RECIPES["eflare-r-sim-mini"],
             dataclasses.replace(cpu, iterations=2000, val_every=10**9),
         ),
         "paper": AblationConfig(
             "paper",
             dataclasses.replace(RECIPES["eflare-2.7k"], test_sequences=0),
-            _test_recipe("eflare-r-sim"),
+            RECIPES["eflare-r-sim"],
             TRAIN_PRESETS["paper"],
         ),
     }
