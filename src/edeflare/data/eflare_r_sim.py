@@ -15,6 +15,16 @@ ground truth, no reflective ghosts or glare), so it measures generalisation.
 
 Sequence ``i`` draws from ``numpy.random.SeedSequence([recipe.seed, i])``
 (children: scene, background, pair), like every recipe.
+
+From Python, any number of sequences with any seed (all of them test
+sequences), e.g. to evaluate models trained on other recipes::
+
+    import dataclasses
+    from edeflare.data.generate import RECIPES, generate_dataset
+
+    if __name__ == "__main__":  # workers are spawned processes
+        recipe = dataclasses.replace(RECIPES["eflare-r-sim-mini"], sequences=20, seed=7)
+        generate_dataset(recipe, "data/r-sim-mini", workers=2)  # data/r-sim-mini/test/*.h5
 """
 
 from __future__ import annotations

@@ -364,7 +364,7 @@ class OpticsSceneConfig:
     star_line_width: tuple[float, float] = (0.1, 0.25)
     star_transmission: tuple[float, float] = (0.1, 0.5)
     star_jitter: tuple[float, float] = (0.1, 0.4)
-    random_phase_rms: tuple[float, float] = (0.4, 1.2)
+    random_phase_rms: tuple[float, float] = (0.3, 1.0)
     random_phase_scale: tuple[float, float] = (0.02, 0.1)
     random_dust: tuple[int, int] = (0, 30)
     defocus_waves: tuple[float, float] = (0.0, 0.25)
