@@ -199,6 +199,27 @@ def test_flare_tables_before_and_after(built):
         assert medians[kind]["input"] > 1.3 * medians[kind]["ground truth"]
     for sample in payload["reconstruction"]:
         assert sample["scores"]["input"] > 2 * sample["scores"]["ground truth"]
+    kept = payload["share_of_input_energy"]
+    rows = tables["flare-kept"][1:]
+    labels = [r[0][0] for r in rows]
+    assert labels == [
+        "flare energy left, reconstructed images",
+        "source energy kept, reconstructed images",
+        "flare energy left, events",
+        "source energy kept, events",
+    ]
+    for row, (kind, part) in zip(
+        rows,
+        [(k, p) for k in ("reconstruction", "events") for p in ("flare", "source")],
+        strict=True,
+    ):
+        for (text, _), column in zip(row[1:], columns, strict=True):
+            assert text == f"{100 * kept[kind][column][part]:.0f}%"
+        assert row[1][0] == "100%"  # the input itself
+    # The ground truth has less flare than the input and keeps the source.
+    for kind in ("reconstruction", "events"):
+        assert kept[kind]["ground truth"]["flare"] < 0.8
+        assert kept[kind]["ground truth"]["source"] > 0.9
     sample_rows = tables["flare-samples"][1:]
     assert [r[0][0] for r in sample_rows][-1] == "median" and len(sample_rows) == 3
     first = payload["reconstruction"][0]["scores"]
@@ -241,12 +262,13 @@ def test_collector_keeps_only_the_samples_and_is_deterministic(built):
     for column in a.columns:
         assert np.array_equal(sample.frames[column], b.samples[0].frames[column])
         assert np.array_equal(sample.recon[column], b.samples[0].recon[column])
-    for column in a.columns:
-        np.testing.assert_array_equal(a.event_scores[column], b.event_scores[column])
-        np.testing.assert_array_equal(a.recon_scores[column], b.recon_scores[column])
-    # A copy of the input scores as the input.
-    np.testing.assert_array_equal(a.event_scores["copy"], a.event_scores["input"])
-    assert len(a.event_scores["input"]) == 9  # 3 sequences x 3 windows
+    for kind in ("events", "reconstruction"):
+        for column in a.columns:
+            np.testing.assert_array_equal(a.energies[kind][column], b.energies[kind][column])
+        # A copy of the input scores as the input and keeps all of its energy.
+        np.testing.assert_array_equal(a.energies[kind]["copy"], a.energies[kind]["input"])
+        assert a.kept(kind)["copy"] == (1.0, 1.0)
+    assert a.n_windows == 9 and a.energies["events"]["input"].shape == (9, 2)  # 3 x 3 windows
     with pytest.raises(ParameterError, match="may not be called"):
         collector(row="input", path="x", **seq)
 

@@ -28,6 +28,9 @@ Definition (:func:`flare_score`):
 
 Lower after de-flaring means less flare; a method that also erases the light
 source raises the score (the denominator shrinks), as it should.
+:func:`region_energies` gives the two energies themselves: compared with the
+input's on the same regions, they say how much of the flare a method left
+and how much of the source it kept.
 """
 
 from __future__ import annotations
@@ -41,7 +44,14 @@ from scipy import ndimage
 from .errors import ParameterError
 from .events import SensorSize, check_events, check_sensor_size
 
-__all__ = ["FlareGeometry", "event_energy", "flare_geometry", "flare_score", "locate_source"]
+__all__ = [
+    "FlareGeometry",
+    "event_energy",
+    "flare_geometry",
+    "flare_score",
+    "locate_source",
+    "region_energies",
+]
 
 
 @dataclass(frozen=True)
@@ -180,10 +190,25 @@ def flare_score(
         geometry = flare_geometry(
             energy, source_radius_px=source_radius_px, flare_radius_px=flare_radius_px
         )
+    e_source, e_flare = region_energies(energy, geometry)
+    return e_flare / e_source if e_source > 0 else math.nan
+
+
+def region_energies(energy: np.ndarray, geometry: FlareGeometry) -> tuple[float, float]:
+    """``(E_source, E_flare)``: the energies above the far-field median of the two regions.
+
+    :func:`flare_score` is their ratio. Compared with the same regions of
+    the input, they tell *how* a method changed the score: the share of the
+    flare energy it left and the share of the source energy it kept.
+
+    Examples
+    --------
+    >>> e = np.zeros((50, 50)); e[25, 25] = 10.0; e[25, 30] = 4.0; e[0, 0] = 7.0
+    >>> region_energies(e, FlareGeometry((25, 25), 2.0, 20.0))
+    (10.0, 4.0)
+    """
+    energy = _check_energy(energy)
     source, flare, far = geometry.masks(energy.shape)
     b = float(np.median(energy[far])) if far.any() else 0.0
     excess = np.maximum(energy - b, 0.0)
-    e_source = float(excess[source].sum())
-    if e_source <= 0.0:
-        return math.nan
-    return float(excess[flare].sum()) / e_source
+    return float(excess[source].sum()), float(excess[flare].sum())

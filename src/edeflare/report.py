@@ -45,7 +45,7 @@ from .benchmark import BenchmarkResult, benchmark
 from .deflare import Method
 from .errors import EventFileError, ParameterError
 from .events import SensorSize
-from .flare_score import FlareGeometry, flare_geometry, flare_score
+from .flare_score import FlareGeometry, flare_geometry, region_energies
 from .io._atomic import atomic_path
 from .reconstruct import LeakyIntegrator, display_scale, to_uint8
 from .tables import METRIC_LABELS, ResultsTable
@@ -68,6 +68,8 @@ DEFAULT_METHODS = ("raw", "voxel", "efr", "pfd-a", "pfd-b", "model")
 INPUT = "input"
 GT = "ground truth"
 _RAW = "raw"
+KINDS = ("reconstruction", "events")
+"""What the flare score is computed on: ``|L|`` of the reconstruction, or event counts."""
 _GIF_MAX_WIDTH = 1600
 
 
@@ -114,20 +116,44 @@ class FigureData:
     columns: list[str]
     """``input``, the method rows except ``raw``, ``ground truth``."""
     samples: list[Sample]
-    event_scores: dict[str, list[float]]
-    """Column -> flare score of the event counts of every window of the split."""
-    recon_scores: dict[str, list[float]]
-    """Column -> flare score of the reconstruction at the end of every window."""
+    energies: dict[str, dict[str, np.ndarray]]
+    """``{kind: {column: (n_windows, 2) array}}``: the source and flare energies
+    (:func:`edeflare.flare_score.region_energies`) of every window of the split, on
+    the input's geometry; ``kind`` is ``"reconstruction"`` (``|L|`` at the window's
+    end) or ``"events"`` (event counts of the window)."""
     sensor_size: SensorSize | None
     cutoff_hz: float
     contrast: float
 
+    @property
+    def n_windows(self) -> int:
+        """Windows scored (over every sequence)."""
+        return len(self.energies["events"][INPUT])
+
+    def scores(self, kind: str) -> dict[str, np.ndarray]:
+        """Column -> flare score of every window (NaN where the source holds no energy)."""
+        out = {}
+        for column, e in self.energies[kind].items():
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[column] = np.where(e[:, 0] > 0, e[:, 1] / e[:, 0], np.nan)
+        return out
+
     def medians(self) -> dict[str, dict[str, float]]:
-        """``{"events"|"reconstruction": {column: median over defined windows}}``."""
+        """``{kind: {column: median flare score over the windows where it is defined}}``."""
         return {
-            "events": {c: _median(v) for c, v in self.event_scores.items()},
-            "reconstruction": {c: _median(v) for c, v in self.recon_scores.items()},
+            kind: {c: _median(v.tolist()) for c, v in self.scores(kind).items()} for kind in KINDS
         }
+
+    def kept(self, kind: str) -> dict[str, tuple[float, float]]:
+        """Column -> shares of the input's (flare, source) energy, summed over all windows."""
+        total = self.energies[kind][INPUT].sum(axis=0)
+        out = {}
+        for column, e in self.energies[kind].items():
+            s = e.sum(axis=0)
+            out[column] = tuple(
+                float(s[i] / total[i]) if total[i] > 0 else math.nan for i in (1, 0)
+            )
+        return out
 
 
 def _median(values: Sequence[float]) -> float:
@@ -171,7 +197,7 @@ class FigureCollector:
     >>> c(row="pfd-b", path="seq", inputs=scene.observed, gt=scene.clean,
     ...   output=scene.clean, sensor_size=(64, 48), start_us=0, end_us=40_000, window_us=20_000)
     >>> data = c.finish()
-    >>> data.columns, len(data.samples), len(data.event_scores["input"])
+    >>> data.columns, len(data.samples), data.n_windows
     (['input', 'pfd-b', 'ground truth'], 1, 2)
     """
 
@@ -198,8 +224,9 @@ class FigureCollector:
         self.radii = {"source_radius_px": source_radius_px, "flare_radius_px": flare_radius_px}
         self._rows: list[str] = []
         self._samples: list[Sample] = []
-        self._event_scores: dict[str, list[float]] = {INPUT: [], GT: []}
-        self._recon_scores: dict[str, list[float]] = {INPUT: [], GT: []}
+        self._energies: dict[str, dict[str, list[tuple[float, float]]]] = {
+            kind: {INPUT: [], GT: []} for kind in KINDS
+        }
         self._current: str | None = None
         self._order = -1
         self._size: SensorSize | None = None
@@ -231,8 +258,8 @@ class FigureCollector:
             return  # the input itself: its column is "input"
         if row not in self._rows:
             self._rows.append(row)
-            self._event_scores[row] = []
-            self._recon_scores[row] = []
+            for kind in KINDS:
+                self._energies[kind][row] = []
         self._stream(row, output)
 
     def _index(self, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -324,9 +351,9 @@ class FigureCollector:
             for k in range(a, b):
                 geometry = self._geometries[k]
                 energy = self._counts(flat, idx[k], idx[k + 1])
-                self._event_scores[name].append(flare_score(energy, geometry))
-                score = flare_score(np.abs(frames[k - a]), geometry)
-                self._recon_scores[name].append(score)
+                self._energies["events"][name].append(region_energies(energy, geometry))
+                recon = region_energies(np.abs(frames[k - a]), geometry)
+                self._energies["reconstruction"][name].append(recon)
                 w = int(self._starts[k])
                 if sample is None or w not in keep:
                     continue
@@ -335,7 +362,7 @@ class FigureCollector:
                 if w == sample.window_start_us:
                     sample.frames[name] = picture
                     sample.recon[name] = frames[k - a].copy()
-                    sample.scores[name] = score
+                    sample.scores[name] = recon[1] / recon[0] if recon[0] > 0 else math.nan
         if sample is not None:
             sample.gif[name] = [gif[g] for g in sample.gif_starts]
 
@@ -345,8 +372,13 @@ class FigureCollector:
         return FigureData(
             columns,
             list(self._samples),
-            {c: list(self._event_scores[c]) for c in columns},
-            {c: list(self._recon_scores[c]) for c in columns},
+            {
+                kind: {
+                    c: np.array(self._energies[kind][c], dtype=np.float64).reshape(-1, 2)
+                    for c in columns
+                }
+                for kind in KINDS
+            },
             self._size,
             self.cutoff_hz,
             self.contrast,
@@ -427,7 +459,16 @@ def metrics_table_html(table: ResultsTable, digits: int = 4) -> str:
 
 
 def speed_table_html(result: BenchmarkResult) -> str:
-    """Per-method speed: 20 ms windows per second and real-time factor."""
+    """Per-method speed as HTML: 20 ms windows per second and real-time factor.
+
+    Examples
+    --------
+    >>> from edeflare.benchmark import MethodSpeed
+    >>> from edeflare.evaluate import Evaluation
+    >>> r = BenchmarkResult(Evaluation(), {"pfd-b": MethodSpeed(2.0, 50, 1_000_000)})
+    >>> "<td>pfd-b</td><td>25.00</td><td>2</td>" in speed_table_html(r)
+    True
+    """
     lines = [
         '<table id="speed">',
         "<thead><tr><th>Method</th><th>windows/s</th><th>real-time factor</th></tr></thead>",
@@ -442,16 +483,28 @@ def speed_table_html(result: BenchmarkResult) -> str:
     return "\n".join(lines)
 
 
-def _score_table(table_id: str, columns: Sequence[str], rows: Sequence[tuple[str, dict]]) -> str:
+def _score_table(
+    table_id: str,
+    columns: Sequence[str],
+    rows: Sequence[tuple[str, Mapping[str, float]]],
+    *,
+    percent: bool = False,
+    bold: Sequence[bool] | None = None,
+) -> str:
+    """Rows of per-column values; the lowest method value of each row in bold (where asked)."""
     head = "".join(f"<th>{_e(c)}</th>" for c in columns)
     methods = [c for c in columns if c not in (INPUT, GT)]
     lines = [f'<table id="{table_id}">', f"<thead><tr><th></th>{head}</tr></thead>", "<tbody>"]
-    for label, values in rows:
+    for r, (label, values) in enumerate(rows):
         finite = {c: values[c] for c in methods if not math.isnan(values.get(c, math.nan))}
         best = min(finite, key=lambda c: finite[c]) if finite else None
+        if bold is not None and not bold[r]:
+            best = None
         cells = []
         for c in columns:
-            text = _fmt(values.get(c, math.nan), 3)
+            value = values.get(c, math.nan)
+            text = _fmt(100 * value, 0) + "%" if percent and not math.isnan(value) else None
+            text = text or _fmt(value, 3)
             cells.append(f"<td><strong>{text}</strong></td>" if c == best else f"<td>{text}</td>")
         lines.append(f"<tr><td>{_e(label)}</td>{''.join(cells)}</tr>")
     lines += ["</tbody>", "</table>"]
@@ -518,7 +571,14 @@ def _results_json(result: BenchmarkResult, figures: FigureData | None) -> str:
                 kind: {c: _nan_none(v) for c, v in values.items()}
                 for kind, values in figures.medians().items()
             },
-            "windows": len(figures.event_scores[INPUT]),
+            "share_of_input_energy": {
+                kind: {
+                    c: {"flare": _nan_none(f), "source": _nan_none(src)}
+                    for c, (f, src) in figures.kept(kind).items()
+                }
+                for kind in KINDS
+            },
+            "windows": figures.n_windows,
             "reconstruction": [
                 {
                     "sequence": s.sequence,
@@ -584,7 +644,13 @@ def _page(
             ("median", {c: _median([s.scores[c] for s in figures.samples]) for c in cols})
         )
         medians = figures.medians()
-        n_windows = len(figures.event_scores[INPUT])
+        n_windows = figures.n_windows
+        kept = {kind: figures.kept(kind) for kind in KINDS}
+        kept_rows = [
+            (f"{part} energy {verb}, {name}", {c: v[i] for c, v in kept[kind].items()})
+            for kind, name in (("reconstruction", "reconstructed images"), ("events", "events"))
+            for i, (part, verb) in enumerate((("flare", "left"), ("source", "kept")))
+        ]
         split_rows = [
             (f"reconstructed images, median over {n_windows} windows", medians["reconstruction"]),
             (f"event counts, median over {n_windows} windows", medians["events"]),
@@ -608,6 +674,11 @@ def _page(
             "<em>after</em>. Zero for a source without flare; a method that also erases the "
             "source scores high. Lowest method in bold. Over every window of the split:</p>",
             _score_table("flare-split", cols, split_rows),
+            '<p class="note">What moved the score: the flare energy a stream leaves and the '
+            "source energy it keeps, as shares of the input's (sums over every window; the "
+            "score changes by their ratio). The ground truth shows what a perfect method "
+            "keeps. Lowest flare share in bold.</p>",
+            _score_table("flare-kept", cols, kept_rows, percent=True, bold=[True, False] * 2),
             '<p class="note">On the reconstructed images above (|L|):</p>',
             _score_table("flare-samples", cols, sample_rows),
         ]
