@@ -369,7 +369,7 @@ def test_detect_light_source_finds_the_bright_disc(rng):
     counts[60, 10:14] = 900  # a short bright line (two pixels wide at most after filtering)
     (light,) = detect_light_source(counts)
     assert light.cx == pytest.approx(60.3, abs=0.5) and light.cy == pytest.approx(25.6, abs=0.5)
-    assert light.r == pytest.approx(5, abs=1.0)
+    assert light.mask((width, height))[d <= 5].all() and light.r < 7  # the rim stays a source
     counts += rng.poisson(np.where(np.hypot(xx - 20, yy - 50) <= 3, 300.0, 0.0))
     first, second = detect_light_source(counts, max_sources=2, level=0.2)
     assert round(first.cx) == 60 and (round(second.cx), round(second.cy)) == (20, 50)

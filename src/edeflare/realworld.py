@@ -563,22 +563,22 @@ def _ncc(a: np.ndarray, b: np.ndarray, lags: np.ndarray, min_overlap: int) -> np
     valid = n >= max(2, int(min_overlap))
     i0 = np.where(valid, i0, 0)
     i1 = np.where(valid, i1, 0)
-    j0 = np.where(valid, i0 + lags, 0)
-    j1 = np.where(valid, i1 + lags, 0)
-    ca = np.concatenate([[0.0], np.cumsum(a)])
-    caa = np.concatenate([[0.0], np.cumsum(a * a)])
-    cb = np.concatenate([[0.0], np.cumsum(b)])
-    cbb = np.concatenate([[0.0], np.cumsum(b * b)])
-    sa, saa = ca[i1] - ca[i0], caa[i1] - caa[i0]
-    sb, sbb = cb[j1] - cb[j0], cbb[j1] - cbb[j0]
-    if int(valid.sum()) <= 64:
-        sab = np.array(
-            [
-                float(np.dot(a[s:e], b[s + k : e + k])) if ok else 0.0
-                for s, e, k, ok in zip(i0, i1, lags, valid, strict=True)
-            ]
-        )
-    else:
+    if int(valid.sum()) <= 64:  # a few lags (the refinement): slices, no full-length temporaries
+        sums = np.zeros((lags.size, 5))
+        for row, (s, e, k, ok) in enumerate(zip(i0, i1, lags, valid, strict=True)):
+            if ok:
+                x, y = a[s:e], b[s + k : e + k]
+                sums[row] = x.sum(), np.dot(x, x), y.sum(), np.dot(y, y), np.dot(x, y)
+        sa, saa, sb, sbb, sab = sums.T
+    else:  # many lags (the coarse search): prefix sums and one FFT correlation
+        j0 = np.where(valid, i0 + lags, 0)
+        j1 = np.where(valid, i1 + lags, 0)
+        ca = np.concatenate([[0.0], np.cumsum(a)])
+        caa = np.concatenate([[0.0], np.cumsum(a * a)])
+        cb = np.concatenate([[0.0], np.cumsum(b)])
+        cbb = np.concatenate([[0.0], np.cumsum(b * b)])
+        sa, saa = ca[i1] - ca[i0], caa[i1] - caa[i0]
+        sb, sbb = cb[j1] - cb[j0], cbb[j1] - cbb[j0]
         z = signal.correlate(b, a, mode="full", method="fft")  # z[k + na - 1] = sum a[i] b[i+k]
         sab = np.where(valid, z[np.clip(lags + na - 1, 0, z.size - 1)], 0.0)
     nn = np.maximum(n, 1).astype(np.float64)
@@ -1184,6 +1184,7 @@ def detect_light_source(
     level: float = 0.5,
     max_sources: int = 1,
     min_area_px: int = 4,
+    margin_px: float = 1.0,
 ) -> list[Circle]:
     """Find the brightest compact region(s) of the event density: the light source(s).
 
@@ -1192,7 +1193,9 @@ def detect_light_source(
     ``level`` times their maximum. Connected regions (8-connectivity) of at
     least ``min_area_px`` pixels are ranked by their peak density, and the
     first ``max_sources`` become circles: centre at the density-weighted
-    centroid, radius ``sqrt(area / pi)``. Run it on the reference pass, where
+    centroid, radius ``sqrt(area / pi) + margin_px`` (the smoothing pulls the
+    threshold contour inside the source's rim; the margin keeps the rim a
+    source pixel rather than glare). Run it on the reference pass, where
     the source is not spread by the filter; sources need a radius of at least
     about 2 pixels to survive the median filter.
 
@@ -1201,6 +1204,16 @@ def detect_light_source(
     data : numpy.ndarray
         Events (with ``sensor_size``) or an ``(H, W)`` count map.
     sensor_size : (width, height), optional
+    sigma_px : float
+        Gaussian smoothing (pixels).
+    level : float
+        Threshold as a fraction of the smoothed maximum.
+    max_sources : int
+        How many regions to return at most.
+    min_area_px : int
+        Smallest region kept (pixels above the threshold).
+    margin_px : float
+        Added to each circle's equivalent radius.
 
     Returns
     -------
@@ -1219,7 +1232,7 @@ def detect_light_source(
     >>> counts[3, 3] = 1e4  # a hot pixel
     >>> (c,) = detect_light_source(counts)
     >>> round(c.cx), round(c.cy), round(c.r)
-    (30, 20, 5)
+    (30, 20, 6)
     """
     counts = _count_map(data, sensor_size)
     if not 0 < level < 1:
@@ -1244,7 +1257,8 @@ def detect_light_source(
     lights = []
     for i in order[: int(max_sources)]:
         cy, cx = ndimage.center_of_mass(smooth, labels, i + 1)
-        lights.append(Circle(float(cx), float(cy), float(math.sqrt(area[i] / math.pi))))
+        radius = math.sqrt(area[i] / math.pi) + max(0.0, float(margin_px))
+        lights.append(Circle(float(cx), float(cy), radius))
     return lights
 
 
