@@ -302,22 +302,38 @@ class RawMethod(Method):
 class _WindowStreamer(Streamer):
     """Aligned windows of ``window_us`` through a batch ``transform``, in window order.
 
-    ``transform`` maps a list of complete ``(window_start, events)`` windows to
-    their outputs; windows without input events are skipped.
+    ``transform(batch, span)`` maps a list of complete ``(window_start, events)``
+    windows to their outputs; windows without input events are skipped.
+    ``span`` is ``(first, end)``: the time of the stream's first event and,
+    once the stream is known to have ended (at :meth:`flush`), one past its
+    last event, else None. A transform that synthesises events (the model)
+    keeps them inside it: the sensor recorded nothing outside. The window
+    holding the latest event is kept back until a later event or the end
+    shows whether the stream ends in it.
     """
 
     def __init__(
         self,
         window_us: int,
-        transform: Callable[[list[tuple[int, np.ndarray]]], list[np.ndarray]],
+        transform: Callable[
+            [list[tuple[int, np.ndarray]], tuple[int, int | None]], list[np.ndarray]
+        ],
     ) -> None:
         self.window_us = window_us
         self.transform = transform
         self.pending = _EMPTY
         self.start: int | None = None
+        self.first_t: int | None = None
 
     def _windows(self, until_us: int | None) -> np.ndarray:
         batch = []
+        end_t = None
+        if self.pending.size:
+            last = int(self.pending["t"][-1]) + 1
+            if until_us is None:
+                end_t = last
+            else:  # hold the window of the last event: it may be the stream's last
+                until_us = min(until_us, last)
         while self.pending.size:
             if self.start is None or self.pending["t"][0] >= self.start + self.window_us:
                 self.start = window_start_for(int(self.pending["t"][0]), self.window_us)
@@ -328,11 +344,15 @@ class _WindowStreamer(Streamer):
             batch.append((self.start, self.pending[:k]))
             self.pending = self.pending[k:]
             self.start = end
-        out = self.transform(batch) if batch else []
+        if not batch or self.first_t is None:
+            return _EMPTY.copy()
+        out = self.transform(batch, (self.first_t, end_t))
         return np.concatenate(out) if out else _EMPTY.copy()
 
     def process(self, events: np.ndarray, until_us: int) -> np.ndarray:
         if events.size:
+            if self.first_t is None:
+                self.first_t = int(events["t"][0])
             self.pending = np.concatenate([self.pending, events]) if self.pending.size else events
         return self._windows(until_us)
 
@@ -358,7 +378,7 @@ class VoxelMethod(Method):
         gen = np.random.default_rng(rng)
         w, bins = self.window_us, self.bins
 
-        def transform(batch: list[tuple[int, np.ndarray]]) -> list[np.ndarray]:
+        def transform(batch: list[tuple[int, np.ndarray]], _span: object) -> list[np.ndarray]:
             return [decode(encode(ev, size, s, w, bins), s, w, rng=gen) for s, ev in batch]
 
         return _WindowStreamer(w, transform)
@@ -514,8 +534,10 @@ class ModelMethod(Method):
         )
         size = check_sensor_size(sensor_size)
 
-        def transform(batch: list[tuple[int, np.ndarray]]) -> list[np.ndarray]:
-            return [ev for _, ev in deflarer.windows(batch, size)]
+        def transform(
+            batch: list[tuple[int, np.ndarray]], span: tuple[int, int | None]
+        ) -> list[np.ndarray]:
+            return [ev for _, ev in deflarer.windows(batch, size, span_us=span)]
 
         return _WindowStreamer(deflarer.window_us, transform)
 

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
 from conftest import random_events, same_events
+from edeflare.deflare import create_method, deflare_file
 from edeflare.errors import EdeflareError
-from edeflare.events import iter_time_windows
+from edeflare.events import iter_time_windows, make_events
+from edeflare.io import read_events, write_events
 from edeflare.models import create_model
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.weights import ModelCard, WeightsError, save_model
@@ -161,3 +164,40 @@ def test_cli_deflare_with_a_model(identity_weights, tmp_path, rng, capsys):
     )
     assert "only loads safetensors" in capsys.readouterr().err
     assert not (tmp_path / "x.h5").exists() and not (tmp_path / "y.h5").exists()
+
+
+@pytest.fixture
+def adding_weights(tmp_path):
+    """A model that adds one ON event to every cell of every bin (final bias 1)."""
+    model = create_model("unet2d.tiny")
+    with torch.no_grad():
+        model.final.bias.fill_(1.0)
+    path = tmp_path / "add.safetensors"
+    save_model(path, model, ModelCard(preset="unet2d.tiny"))
+    return path
+
+
+def test_no_event_is_synthesised_outside_the_recordings_span(adding_weights, tmp_path):
+    size = (16, 12)
+    # a recording from 27 ms to 52.5 ms: windows [20, 40) and [40, 60) ms are partial
+    ev = make_events([27_000, 35_000, 52_499], [0, 1, 2], [0, 1, 2], [1, 0, 1])
+    method = create_method("model", weights=adding_weights)
+    out = method(ev, size)
+    assert out["t"].min() >= 27_000 and out["t"].max() <= 52_499
+    # bins of 2.5 ms: [20, 40) ms keeps bins 2..7 (bin 2 = [25, 27.5) ms partly), [40, 60)
+    # ms keeps bins 0..5 (bin 5 = [52.5, 55) ms lies after the last event: dropped)
+    per_bin = encode(out, size, 20_000, 40_000, bins=16) - encode(ev, size, 20_000, 40_000, 16)
+    added = per_bin.sum(axis=(1, 2))
+    assert (added[:2] == 0).all() and (added[13:] == 0).all()  # outside [27, 52.5) ms
+    assert (added[3:13] == 192).all()  # one per pixel in every bin inside
+    assert 0.1 < added[2] / 192 < 0.3  # the partial bin: the fifth drawn after 27 ms
+    # streamed from a file (windows arrive one at a time): the same output
+    src, dst = tmp_path / "in.npz", tmp_path / "out.npz"
+    write_events(src, ev, size)
+    deflare_file(src, dst, "model", params={"weights": adding_weights}, progress=False)
+    assert same_events(read_events(dst).events, out)
+    # without a span (interior windows) every bin gets its events
+    deflarer = ModelDeflarer(adding_weights)
+    ((_, inner),) = deflarer.windows([(20_000, ev[:2])], size)
+    # +1 per cell: the OFF event's cell cancels to 0 (removed), all others gain one ON
+    assert len(inner) == 8 * 192 and 35_000 not in inner["t"]

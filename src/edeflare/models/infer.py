@@ -108,9 +108,20 @@ class ModelDeflarer:
         return decode(grid, start, self.window_us, rng)
 
     def windows(
-        self, windows: Iterable[tuple[int, np.ndarray]], sensor_size: SensorSize
+        self,
+        windows: Iterable[tuple[int, np.ndarray]],
+        sensor_size: SensorSize,
+        *,
+        span_us: tuple[int | None, int | None] | None = None,
     ) -> Iterator[tuple[int, np.ndarray]]:
         """De-flare ``(window_start_us, events)`` pairs, in order, batching the network calls.
+
+        ``span_us = (first, end)`` is the recording's time span (either side
+        may be None: open): the network sees empty bins before the first event
+        of a recording or after its end and may fill them, but the sensor
+        recorded nothing there, so no event is synthesised outside the span
+        (the cells of bins outside it are left as the input has them, and added
+        events outside it are dropped).
 
         Examples
         --------
@@ -125,23 +136,44 @@ class ModelDeflarer:
         >>> [(s, e["t"].tolist()) for s, e in out]   # an untrained model is the identity
         [(0, [10]), (20000, [30000])]
         """
+        lo, hi = span_us if span_us is not None else (None, None)
         batch: list[tuple[int, np.ndarray]] = []
         for start, events in windows:
             check_events(events, sensor_size)
             batch.append((int(start), events))
             if len(batch) == self.batch_windows:
-                yield from self._run(batch, sensor_size)
+                yield from self._run(batch, sensor_size, lo, hi)
                 batch = []
         if batch:
-            yield from self._run(batch, sensor_size)
+            yield from self._run(batch, sensor_size, lo, hi)
 
     def _run(
-        self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
+        self,
+        batch: list[tuple[int, np.ndarray]],
+        sensor_size: SensorSize,
+        lo: int | None,
+        hi: int | None,
     ) -> Iterator[tuple[int, np.ndarray]]:
-        bins = self.card.bins
-        grids = [encode(ev, sensor_size, s, self.window_us, bins) for s, ev in batch]
-        for (start, events), restored in zip(batch, self._restore(grids), strict=True):
-            yield start, self._decode(restored, events, start)
+        bins, w = self.card.bins, self.window_us
+        grids = [encode(ev, sensor_size, s, w, bins) for s, ev in batch]
+        for (start, events), grid, restored in zip(batch, grids, self._restore(grids), strict=True):
+            # bin b covers [start + ceil(b w / bins), start + ceil((b + 1) w / bins))
+            edges = start + -(-np.arange(bins + 1) * w // bins)
+            outside = np.zeros(bins, dtype=bool)
+            if lo is not None:
+                outside |= edges[1:] <= lo
+            if hi is not None:
+                outside |= edges[:-1] >= hi
+            if outside.any():
+                restored[outside] = grid[outside]
+            out = self._decode(restored, events, start)
+            if (lo is not None and start < lo) or (hi is not None and start + w > hi):
+                t = out["t"]
+                inside = (t >= (start if lo is None else lo)) & (
+                    t < (start + w if hi is None else hi)
+                )
+                out = out[inside]
+            yield start, out
 
     def __call__(self, events: np.ndarray, sensor_size: SensorSize, start_us: int) -> np.ndarray:
         """De-flare one window starting at ``start_us``."""
