@@ -1702,8 +1702,9 @@ class PairConfig:
     glare_radius_px : float
         Width of the glare zone removed from the reference around each source.
     noise_rate_hz : float, optional
-        Background noise rate per pixel to inject; None measures it on the
-        observation (:func:`estimate_background_rate`); 0 injects none.
+        Background noise rate per pixel to inject; None measures it (and its
+        ON fraction) on the observation (:func:`estimate_background_rate`);
+        a given rate injects 50 % ON events; 0 injects none.
     noise_region : {"cleaned", "all"}
         Where noise is injected: the glare zone that cleaning emptied
         (default; the rest of the reference keeps its own recorded
