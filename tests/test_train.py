@@ -110,6 +110,32 @@ def test_resume_is_exact_and_logs_are_not_duplicated(dataset, tmp_path):
     assert iterations == list(range(1, 13))
 
 
+def test_resume_keeps_the_best_score_and_the_clock(dataset, tmp_path):
+    cfg = _config(iterations=12)
+    out = tmp_path / "r"
+    val = _paths(dataset, "test")
+    train(
+        dataclasses.replace(cfg, iterations=6),
+        _paths(dataset, "train"),
+        out,
+        val_paths=val,
+        progress=False,
+    )
+    best_before = load_model(out / "best.safetensors")[1].metrics
+    seconds_before = float(_log(out / "train_log.csv")[-1]["seconds"])
+    state = torch.load(out / "checkpoint.pt", weights_only=True)
+    assert state["best_val_mse"] == pytest.approx(best_before["val_mse"])
+    train(cfg, _paths(dataset, "train"), out, val_paths=val, progress=False)
+    rows = _log(out / "train_log.csv")
+    seconds = [float(r["seconds"]) for r in rows]
+    assert seconds == sorted(seconds) and seconds[6] >= seconds_before  # the clock goes on
+    # best.safetensors holds the lowest validation MSE over both parts of the run
+    scores = {int(r["iteration"]): float(r["val_mse"]) for r in _log(out / "val_log.csv")}
+    best = load_model(out / "best.safetensors")[1].metrics
+    assert best["val_mse"] == pytest.approx(min(scores.values()))
+    assert best["iteration"] == min(scores, key=scores.get)
+
+
 def test_resume_refuses_another_configuration(dataset, tmp_path):
     train(_config(iterations=4), _paths(dataset, "train"), tmp_path / "r", progress=False)
     with pytest.raises(EdeflareError, match=r"other values of \['lr'\]"):

@@ -151,6 +151,8 @@ def _dist_env() -> _Dist:
         int(os.environ.get("LOCAL_RANK", "0")),
     )
     if env.world > 1 and not dist.is_initialized():
+        if torch.cuda.is_available():  # one GPU per process, set before NCCL starts
+            torch.cuda.set_device(env.local_rank)
         dist.init_process_group(backend="nccl" if torch.cuda.is_available() else "gloo")
     return env
 
@@ -241,6 +243,8 @@ def _save_checkpoint(
     opt: torch.optim.Optimizer,
     iteration: int,
     config: TrainConfig,
+    best_val_mse: float,
+    seconds: float,
 ) -> None:
     state = {
         "model": model.state_dict(),
@@ -248,6 +252,8 @@ def _save_checkpoint(
         "iteration": iteration,
         "config": json.dumps(config.to_dict()),
         "torch_rng": torch.get_rng_state(),
+        "best_val_mse": best_val_mse,  # so a resumed run keeps best.safetensors' meaning
+        "seconds": seconds,  # training time so far, continued by train_log.csv
     }
     with atomic_path(path) as tmp:
         torch.save(state, tmp)
@@ -256,9 +262,12 @@ def _save_checkpoint(
 def _validate(
     model: torch.nn.Module, dataset: PairedWindows, config: TrainConfig, device: torch.device
 ) -> dict[str, float]:
-    """Voxel MSE of the model and of the identity on evenly spaced windows, plus event metrics."""
+    """Voxel MSE of the model and of the identity on evenly spaced windows, plus event metrics.
+
+    Events are decoded with the ``keep`` decoder, as ``edeflare deflare`` does by default.
+    """
     from .metrics import segment_metrics
-    from .voxel import decode
+    from .voxel import decode_keep
 
     n = len(dataset)
     picks = np.unique(np.linspace(0, n - 1, min(n, config.val_windows)).round().astype(int))
@@ -273,7 +282,9 @@ def _validate(
             sums["input_mse"] += float(np.mean((x - y) ** 2))
             ref = dataset.windows[int(i)]
             gt = dataset.target_events(int(i))
-            pred = decode(out, ref.start_us, config.window_us, rng=int(i))
+            pred = decode_keep(
+                out, dataset.input_events(int(i)), ref.start_us, config.window_us, rng=int(i)
+            )
             m = segment_metrics(
                 gt, pred, dataset.sensor_size, ref.start_us, config.window_us, bins=config.bins
             )
@@ -333,6 +344,7 @@ def train(
     opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     ckpt_path = out / "checkpoint.pt"
     start = 0
+    best, elapsed = math.inf, 0.0
     if env.main:
         out.mkdir(parents=True, exist_ok=True)
     if ckpt_path.exists():
@@ -352,6 +364,8 @@ def train(
         opt.load_state_dict(state["optimizer"])
         torch.set_rng_state(state["torch_rng"])
         start = int(state["iteration"])
+        best = float(state.get("best_val_mse", math.inf))
+        elapsed = float(state.get("seconds", 0.0))
     if env.main:
         (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
         for name in ("train_log.csv", "val_log.csv"):
@@ -364,8 +378,7 @@ def train(
     use_amp = config.amp and device.type == "cuda"
     scaler = torch.amp.GradScaler("cuda", enabled=use_amp)
     model.train()
-    best = math.inf
-    t0 = time.perf_counter()
+    t0 = time.perf_counter() - elapsed
     bar = tqdm(
         total=config.iterations,
         initial=start,
@@ -404,7 +417,9 @@ def train(
                 save_model(out / "best.safetensors", model, _card(config, command, scores, done))
         if done % config.checkpoint_every == 0 or done == config.iterations:
             if env.main:
-                _save_checkpoint(ckpt_path, model, opt, done, config)
+                _save_checkpoint(
+                    ckpt_path, model, opt, done, config, best, time.perf_counter() - t0
+                )
             if env.world > 1:
                 dist.barrier()
     bar.close()

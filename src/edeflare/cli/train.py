@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import shlex
 import sys
 from pathlib import Path
@@ -79,5 +80,6 @@ def run(args: argparse.Namespace) -> int:
         val_paths=list_sequences(test_dir) if test_dir.is_dir() else None,
         command="edeflare " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
     )
-    print(f"trained {config.preset} for {config.iterations} iterations: {final}")
+    if int(os.environ.get("RANK", "0")) == 0:  # once, not per DDP process
+        print(f"trained {config.preset} for {config.iterations} iterations: {final}")
     return 0

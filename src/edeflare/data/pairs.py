@@ -234,8 +234,15 @@ class PairedWindows:
 
     def target_events(self, index: int) -> np.ndarray:
         """The ground-truth events of window ``index`` (through the dataset's open readers)."""
+        return self._events(index, self.groups[1])
+
+    def input_events(self, index: int) -> np.ndarray:
+        """The input events of window ``index`` (through the dataset's open readers)."""
+        return self._events(index, self.groups[0])
+
+    def _events(self, index: int, group: str) -> np.ndarray:
         ref = self.windows[index]
-        reader = self._reader(ref.path, self.groups[1])
+        reader = self._reader(ref.path, group)
         return reader.read_time(ref.start_us, ref.start_us + self.window_us)
 
     def _encode(self, index: int) -> tuple[np.ndarray, np.ndarray]:
