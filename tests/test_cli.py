@@ -180,3 +180,27 @@ def test_console_script_runs_without_traceback(tmp_path):
     assert done.returncode == 1
     assert "Traceback" not in done.stderr
     assert done.stderr.strip().endswith("nope.raw: no such file")
+
+
+def test_group_option_opens_one_stream_of_a_paired_file(tmp_path, capsys, rng):
+    from edeflare.io.dsec import write_dsec_groups
+
+    inp = random_events(rng, 300, (16, 12), t0=0, span_us=40_000)
+    gt = inp[::3]
+    path = tmp_path / "seq.h5"
+    write_dsec_groups(path, {"input": inp, "gt": gt}, (16, 12))
+    assert main(["info", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "several event groups" in err and "--group" in err and "'gt'" in err
+    assert main(["info", str(path), "--group", "gt"]) == 0
+    assert "events      100" in capsys.readouterr().out
+    out = tmp_path / "gt.npz"
+    assert main(["convert", str(path), str(out), "--group", "gt"]) == 0
+    assert same_events(read_events(out).events, gt)
+    clean = tmp_path / "clean.npz"
+    assert main(["deflare", str(path), str(clean), "-m", "raw", "--group", "input/events"]) == 0
+    assert same_events(read_events(clean).events, inp)
+    assert main(["info", str(out), "--group", "gt"]) == 1
+    assert "applies to HDF5 files only" in capsys.readouterr().err
+    assert main(["info", str(path), "--group", "nope"]) == 1
+    assert "no event group 'nope'" in capsys.readouterr().err

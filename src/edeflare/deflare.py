@@ -701,6 +701,7 @@ def deflare_file(
     max_lag_us: int | None = 10_000_000,
     evt_version: str = "evt2",
     progress: bool | None = None,
+    group: str | None = None,
 ) -> DeflareStats:
     """Stream a file through a method window by window and write the result atomically.
 
@@ -769,7 +770,7 @@ def deflare_file(
         m = method
     else:
         m = create_method(method, **dict(params or {}))
-    src = open_events(in_path, sensor_size)
+    src = open_events(in_path, sensor_size, group=group)
     size = src.sensor_size
     disable = None if progress is None else not progress
     prepared = None

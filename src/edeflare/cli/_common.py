@@ -7,9 +7,12 @@ import argparse
 from ..errors import EventsError
 from ..events import SensorSize, parse_sensor_size
 
-__all__ = ["SIZE_HELP", "crop_spec", "ms_to_us", "sensor_size_arg"]
+__all__ = ["GROUP_HELP", "SIZE_HELP", "crop_spec", "ms_to_us", "sensor_size_arg"]
 
 SIZE_HELP = "sensor size WxH, for files that record none (else max+1, with a warning)"
+GROUP_HELP = (
+    "HDF5 event group to read from a file with several, e.g. input or gt of a paired sequence file"
+)
 
 
 def sensor_size_arg(text: str) -> SensorSize:

@@ -10,7 +10,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..events import center_crop, crop
-from ._common import SIZE_HELP, crop_spec, ms_to_us, sensor_size_arg
+from ._common import GROUP_HELP, SIZE_HELP, crop_spec, ms_to_us, sensor_size_arg
 
 HELP = "Convert between event formats (by suffix), streaming, optionally cropped."
 
@@ -21,6 +21,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("input", type=Path)
     p.add_argument("output", type=Path)
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help=SIZE_HELP)
+    p.add_argument("--group", help=GROUP_HELP)
     p.add_argument(
         "--crop",
         type=crop_spec,
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     """Stream chunks from the input, filter and crop them, write the output atomically."""
     from ..io import open_events, write_event_chunks
 
-    src = open_events(args.input, args.sensor_size)
+    src = open_events(args.input, args.sensor_size, group=args.group)
     size = src.sensor_size
     out_size = size
     if args.crop is not None:

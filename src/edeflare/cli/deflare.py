@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import EdeflareError, ParameterError
-from ._common import SIZE_HELP, sensor_size_arg
+from ._common import GROUP_HELP, SIZE_HELP, sensor_size_arg
 
 HELP = (
     "De-flare an event file, streaming: with the bundled E-DeflareNet (default), "
@@ -57,6 +57,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("output", type=Path, help="any writable format, by suffix")
     p.add_argument("-m", "--method", default="model", choices=list_methods())
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help=SIZE_HELP)
+    p.add_argument("--group", help=GROUP_HELP)
     p.add_argument("--window-ms", type=float, default=20.0, help="streaming window (ms)")
     p.add_argument("--seed", type=int, help="seed of methods that draw (voxel, model)")
     p.add_argument(
@@ -268,6 +269,7 @@ def run(args: argparse.Namespace) -> int:
         rng=args.seed,
         max_lag_us=max_lag_us,
         evt_version=args.evt_version,
+        group=args.group,
     )
     kept = stats.events_out / stats.events_in if stats.events_in else 0.0
     print(

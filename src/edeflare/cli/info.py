@@ -7,7 +7,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ._common import SIZE_HELP, sensor_size_arg
+from ._common import GROUP_HELP, SIZE_HELP, sensor_size_arg
 
 HELP = "Describe an event file: format, sensor, events, span, rate, ON fraction."
 
@@ -17,6 +17,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p = sub.add_parser("info", help=HELP, description=HELP, **kwargs)
     p.add_argument("file", type=Path)
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help=SIZE_HELP)
+    p.add_argument("--group", help=GROUP_HELP)
     p.set_defaults(func=run)
 
 
@@ -24,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
     """Stream the file once and print its figures."""
     from ..io import open_events
 
-    src = open_events(args.file, args.sensor_size)
+    src = open_events(args.file, args.sensor_size, group=args.group)
     n = n_on = 0
     first = last = None
     with tqdm(total=src.n_events, unit="ev", unit_scale=True, disable=None, leave=False) as bar:

@@ -8,7 +8,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ..errors import EdeflareError
-from ._common import SIZE_HELP, ms_to_us, sensor_size_arg
+from ._common import GROUP_HELP, SIZE_HELP, ms_to_us, sensor_size_arg
 
 HELP = "Render windows of events (ON red, OFF blue) to a PNG, GIF or MP4."
 
@@ -19,6 +19,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("file", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True, help=".png, .jpg, .gif or .mp4")
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help=SIZE_HELP)
+    p.add_argument("--group", help=GROUP_HELP)
     p.add_argument(
         "--start-ms",
         type=float,
@@ -44,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     window = round(args.window_ms * 1000)
     if window <= 0:
         raise EdeflareError(f"--window-ms must be positive, got {args.window_ms}")
-    src = open_events(args.file, args.sensor_size)
+    src = open_events(args.file, args.sensor_size, group=args.group)
     size = src.sensor_size
     start = ms_to_us(args.start_ms)
     end = None if start is None else start + window * args.count

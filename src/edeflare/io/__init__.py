@@ -153,6 +153,10 @@ class EventSource:
         Overrides the size recorded in the file; required in practice for
         files that record none (``.csv``, ``.txt``, some ``.raw`` and ``.dat``),
         else it is inferred as ``max + 1`` with a warning.
+    group : str, optional
+        HDF5 files only: the event group to read when a file holds several,
+        e.g. ``"input"`` or ``"gt"`` of a paired sequence file (``"input"`` is
+        short for ``"input/events"``).
 
     Examples
     --------
@@ -165,10 +169,21 @@ class EventSource:
     ((4, 4), [1, 1])
     """
 
-    def __init__(self, path: str | os.PathLike[str], sensor_size: SensorSize | None = None) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        sensor_size: SensorSize | None = None,
+        *,
+        group: str | None = None,
+    ) -> None:
         self.path = Path(path)
         self._format = _format_for(self.path)
         self.format = self._format.name
+        if group is not None and self._format.opener is not None:
+            raise EventFileError(
+                self.path, f"a group ({group!r}) applies to HDF5 files only, not {self.format}"
+            )
+        self.group = group
         if not self.path.is_file():
             raise EventFileError(self.path, "no such file")
         if self.path.stat().st_size == 0:
@@ -181,7 +196,7 @@ class EventSource:
         self._given_size = sensor_size
         self._recorded_size: SensorSize | None
         if self._format.opener is None:
-            with DsecReader(self.path) as reader:
+            with DsecReader(self.path, group=self.group) as reader:
                 self._recorded_size = reader.recorded_sensor_size
                 self.n_events: int | None = reader.n_events
         else:
@@ -231,7 +246,7 @@ class EventSource:
     # -- data ---------------------------------------------------------------------------
     def _raw_chunks(self, chunk_events: int = 1 << 20) -> Iterator[np.ndarray]:
         if self._format.opener is None:
-            with DsecReader(self.path) as reader:
+            with DsecReader(self.path, group=self.group) as reader:
                 yield from reader.iter_chunks(chunk_events)
         else:
             yield from self._format.opener(self.path, self._given_size)[1]
@@ -258,7 +273,7 @@ class EventSource:
         """All events of the file in one array."""
         if self._format.opener is None:  # DSEC knows its length: read into one array
             size = self.sensor_size
-            with DsecReader(self.path) as reader:
+            with DsecReader(self.path, group=self.group) as reader:
                 events = reader.read()
             try:
                 return check_events(events, size)
@@ -322,7 +337,7 @@ class EventSource:
         self, window_us: int, start_us: int | None, end_us: int | None
     ) -> Iterator[tuple[int, np.ndarray]]:
         size = self.sensor_size
-        with DsecReader(self.path) as reader:
+        with DsecReader(self.path, group=self.group) as reader:
             span = reader.time_range()
             if span is None and (start_us is None or end_us is None):
                 return
@@ -344,9 +359,14 @@ class EventSource:
                 cur += window_us
 
 
-def open_events(path: str | os.PathLike[str], sensor_size: SensorSize | None = None) -> EventSource:
+def open_events(
+    path: str | os.PathLike[str],
+    sensor_size: SensorSize | None = None,
+    *,
+    group: str | None = None,
+) -> EventSource:
     """Open an event file of any known format. See :class:`EventSource`."""
-    return EventSource(path, sensor_size)
+    return EventSource(path, sensor_size, group=group)
 
 
 def read_events(path: str | os.PathLike[str], sensor_size: SensorSize | None = None) -> Recording:

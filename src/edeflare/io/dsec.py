@@ -106,11 +106,18 @@ class DsecReader:
             if len(groups) > 1:
                 left = [g for g in groups if "left" in g.split("/")]
                 if len(left) != 1:
+                    names = [g.removesuffix("/events") for g in groups]
                     raise EventFileError(
-                        self.path, f"several event groups {groups}; choose one with group="
+                        self.path,
+                        f"several event groups {names}; choose one "
+                        "(--group at the command line, group= in Python)",
                     )
                 groups = left
             group = groups[0]
+        group = group.strip("/")
+        if group in f and isinstance(f[group], h5py.Group) and "t" not in f[group]:
+            if f"{group}/events" in f:  # "input" for "input/events"
+                group = f"{group}/events"
         if group not in f or not isinstance(f[group], h5py.Group):
             raise EventFileError(self.path, f"no event group {group!r}")
         g = f[group]
