@@ -54,8 +54,6 @@ from edeflare.sim.compose import (
 )
 from edeflare.sim.render import Renderer
 
-FULL = RECIPES["eflare-2.7k"].sequences
-
 
 def throughput(name: str, n: int, workers: int) -> dict[str, object]:
     recipe = dataclasses.replace(RECIPES[name], sequences=n, test_sequences=0)
@@ -71,7 +69,7 @@ def throughput(name: str, n: int, workers: int) -> dict[str, object]:
         "workers": workers,
         "wall_s": rep.wall_seconds,
         "seq_per_hour": rate,
-        "full_recipe_h": FULL / rate,
+        "full_recipe_h": RECIPES[name].sequences / rate,  # the whole named recipe
         "MiB_per_seq": size_mb,
         "events_per_seq": float(events),
     }
