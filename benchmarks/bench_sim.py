@@ -81,7 +81,7 @@ def time_simulator(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--runs", type=int, default=9, help="timed runs per 346x260 case")
+    parser.add_argument("--runs", type=int, default=12, help="timed runs per 346x260 case")
     args = parser.parse_args()
     rows: list[dict[str, object]] = []
 

@@ -1052,5 +1052,11 @@ def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:
     from tqdm import tqdm
 
     return tqdm(
-        total=total, initial=initial, desc=name, unit="seq", file=sys.stderr, dynamic_ncols=True
+        total=total,
+        initial=initial,
+        desc=name,
+        unit="seq",
+        file=sys.stderr,
+        dynamic_ncols=True,
+        disable=None,  # no bar when stderr is not a terminal (logs, nohup)
     )
