@@ -60,3 +60,35 @@ def test_cli_benchmark_report(split, tmp_path, capsys):
     payload = json.loads(out.with_suffix(".json").read_text())
     assert payload["benchmark"]["speed"]["pfd-b"]["windows"] == 6
     assert set(payload["values"]) == {"raw", "pfd-b"}
+
+
+def test_cli_benchmark_compares_several_named_models(split, tmp_path, capsys):
+    import torch
+
+    from edeflare.models import create_model
+    from edeflare.models.weights import ModelCard, save_model
+
+    identity = tmp_path / "identity.safetensors"
+    save_model(identity, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
+    adder = create_model("unet2d.tiny")
+    with torch.no_grad():
+        adder.final.bias.fill_(1.0)  # adds an ON event to every cell
+    adds = tmp_path / "adds.safetensors"
+    save_model(adds, adder, ModelCard(preset="unet2d.tiny"))
+    out = tmp_path / "t.md"
+    argv = ["benchmark", str(split), "--methods", "raw", "--report", str(out)]
+    argv += ["--model", f"ident={identity}", "--model", f"adds={adds}"]
+    assert main(argv) == 0
+    values = json.loads(out.with_suffix(".json").read_text())["values"]
+    assert list(values) == ["raw", "ident", "adds"]
+    # the identity model with the keep decoder returns the input exactly
+    assert values["ident"] == pytest.approx(values["raw"])
+    assert values["adds"]["mse"] > values["ident"]["mse"]
+    capsys.readouterr()
+    # an unnamed --model adds the 'model' row; a clash or two unnamed ones are errors
+    assert main(["benchmark", str(split), "--methods", "raw", "--model", str(identity)]) == 0
+    assert "| model |" in capsys.readouterr().out
+    assert main(["benchmark", str(split), "--model", f"raw={identity}"]) == 1
+    assert "already has a row 'raw'" in capsys.readouterr().err
+    assert main(["benchmark", str(split), "--model", str(identity), "--model", str(adds)]) == 1
+    assert "one unnamed --model" in capsys.readouterr().err

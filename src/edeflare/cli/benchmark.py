@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from ..errors import EdeflareError
+
 HELP = "Benchmark methods on a dataset split (folder of sequence files): metrics table and speed."
 
 
@@ -19,7 +21,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         default=["raw", "voxel", "efr", "pfd-a", "pfd-b", "model"],
         help="registered methods to run ('raw' is the unranked input row)",
     )
-    p.add_argument("--model", type=Path, help="weights for the 'model' row [the bundled model]")
+    p.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="[NAME=]PATH",
+        help="weights for the 'model' row [the bundled model]; NAME=PATH adds a row NAME "
+        "(repeatable: compare several trained models in one table)",
+    )
     p.add_argument(
         "--decoder", choices=["keep", "paper"], default="keep", help="decoder of the 'model' row"
     )
@@ -39,25 +48,49 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.set_defaults(func=run)
 
 
+def _models(values: list[str]) -> tuple[Path | None, dict[str, Path]]:
+    """Split ``--model`` values into the unnamed one (the 'model' row) and ``NAME=PATH`` rows."""
+    unnamed: Path | None = None
+    named: dict[str, Path] = {}
+    for text in values:
+        name, sep, path = text.partition("=")
+        if sep and name and "/" not in name and not Path(text).exists():
+            if name in named:
+                raise EdeflareError(f"--model {text}: row {name!r} given twice")
+            named[name] = Path(path)
+        elif unnamed is not None:
+            raise EdeflareError("give one unnamed --model PATH; name the others NAME=PATH")
+        else:
+            unnamed = Path(text)
+    return unnamed, named
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark, print the tables, optionally write the report files."""
     from ..benchmark import benchmark
     from ..io._atomic import atomic_path
 
-    params = {}
-    if "model" in args.methods:
+    rows: dict[str, str] = {m: m for m in args.methods}
+    params: dict[str, dict[str, object]] = {}
+    unnamed, named = _models(args.model)
+    if unnamed is not None and "model" not in rows:
+        rows["model"] = "model"
+    if "model" in rows:
         params["model"] = {"decoder": args.decoder}
-        if args.model is not None:
-            params["model"]["weights"] = args.model
+        if unnamed is not None:
+            params["model"]["weights"] = unnamed
+    for name, path in named.items():
+        if name in rows:
+            raise EdeflareError(f"--model {name}={path}: the table already has a row {name!r}")
+        rows[name] = "model"
+        params[name] = {"decoder": args.decoder, "weights": path}
     collector = None
     if args.html is not None:
         from ..report import FigureCollector, check_report_dir
 
         check_report_dir(args.html)
         collector = FigureCollector(args.samples)
-    result = benchmark(
-        args.split, {m: m for m in args.methods}, params=params, seed=args.seed, on_output=collector
-    )
+    result = benchmark(args.split, rows, params=params, seed=args.seed, on_output=collector)
     table = result.table()
     markdown = table.to_markdown() + "\n" + result.speed_markdown()
     print(markdown, end="")
