@@ -62,6 +62,26 @@ def check_range(
     return v
 
 
+def check_interval(name: str, value: Any, like: tuple[Any, Any]) -> tuple[Any, Any]:
+    """A ``(low, high)`` range with ``0 <= low <= high < inf``, cast like ``like``'s items.
+
+    Examples
+    --------
+    >>> check_interval("travel_px", [0, 150.5], (0.0, 1.0))
+    (0.0, 150.5)
+    >>> check_interval("sources", (1, 3), (1, 2))
+    (1, 3)
+    """
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise SimError(f"{name} must be (low, high), got {value!r}") from None
+    if not (0 <= lo <= hi and math.isfinite(hi)):
+        raise SimError(f"{name} must be (low, high) with 0 <= low <= high, got {value!r}")
+    cast = int if isinstance(like[0], int) else float
+    return cast(lo), cast(hi)
+
+
 def check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
     """Return ``value`` if it is one of ``choices``, else raise :class:`SimError` listing them."""
     if value not in choices:

@@ -58,7 +58,14 @@ from ..errors import EventFileError
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, slice_time
 from ..io import open_events
 from ..io.dsec import DsecReader
-from ._validation import SimError, check_choice, check_range, dataclass_from_dict, make_rng
+from ._validation import (
+    SimError,
+    check_choice,
+    check_interval,
+    check_range,
+    dataclass_from_dict,
+    make_rng,
+)
 from .compose import AccumulatedIntensity, AccumulationParams, CountIntensity, IntensityField
 from .dvs import IdealSimulator, VoltmeterSimulator, draw_thresholds
 from .script import SensorSpec
@@ -355,14 +362,7 @@ class SceneConfig:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if isinstance(f.default, tuple):
-                try:
-                    lo, hi = (float(v) for v in value)
-                except (TypeError, ValueError):
-                    raise SimError(f"{f.name} must be (low, high), got {value!r}") from None
-                if not (0 <= lo <= hi and math.isfinite(hi)):
-                    raise SimError(f"{f.name} must be (low, high) with 0 <= low <= high")
-                cast = int if isinstance(f.default[0], int) else float
-                object.__setattr__(self, f.name, (cast(lo), cast(hi)))
+                object.__setattr__(self, f.name, check_interval(f.name, value, f.default))
         check_range("margin", self.margin, 0, 4)
         check_range("fps", self.fps, 1, 1e6)
 

@@ -70,14 +70,21 @@ import numpy as np
 from scipy import ndimage
 
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, merge_events
-from ._validation import SimError, check_choice, check_range, dataclass_from_dict, make_rng
+from ._validation import (
+    SimError,
+    check_choice,
+    check_interval,
+    check_range,
+    dataclass_from_dict,
+    make_rng,
+)
 from .background import Background, NightStreet, camera_simulator
 from .compose import Components, compose_pair
 from .dvs import DVS346_K, IdealParams, VoltmeterParams
 from .flare import WHITE, light_source, scattering_flare
 from .optics import PSFConfig, psf_pair
 from .render import _warp_add
-from .script import SensorSpec
+from .script import SensorSpec, sensor_spec_from_dict
 
 __all__ = [
     "FILTERS",
@@ -308,12 +315,7 @@ class OpticsScene:
                 dataclass_from_dict(LightSourceSpec, s, what="a light source") for s in d["sources"]
             )
         if "sensor" in d:
-            s = dict(d["sensor"])
-            if "voltmeter" in s:
-                s["voltmeter"] = VoltmeterParams.from_dict(s["voltmeter"])
-            if "ideal" in s:
-                s["ideal"] = IdealParams.from_dict(s["ideal"])
-            d["sensor"] = dataclass_from_dict(SensorSpec, s, what="the sensor")
+            d["sensor"] = sensor_spec_from_dict(d["sensor"])
         return dataclass_from_dict(cls, d, what="OpticsScene")
 
     def to_json(self) -> str:
@@ -398,14 +400,7 @@ class OpticsSceneConfig:
             elif f.name.endswith("probability"):
                 check_range(f.name, value, 0, 1)
             elif isinstance(f.default, tuple):
-                try:
-                    lo, hi = (float(v) for v in value)
-                except (TypeError, ValueError):
-                    raise SimError(f"{f.name} must be (low, high), got {value!r}") from None
-                if not (0 <= lo <= hi and math.isfinite(hi)):
-                    raise SimError(f"{f.name} must be (low, high) with 0 <= low <= high")
-                cast = int if isinstance(f.default[0], int) else float
-                object.__setattr__(self, f.name, (cast(lo), cast(hi)))
+                object.__setattr__(self, f.name, check_interval(f.name, value, f.default))
             else:
                 check_range(f.name, value, 0, lo_open=True)
         if self.sources[0] < 1:

@@ -306,15 +306,7 @@ class FlareScript:
                 dataclass_from_dict(GhostSpec, g, what="a ghost") for g in d["ghosts"]
             )
         if "sensor" in d:
-            s = d["sensor"]
-            if not isinstance(s, Mapping):
-                raise SimError("script 'sensor' must be a mapping")
-            s = dict(s)
-            if "voltmeter" in s:
-                s["voltmeter"] = VoltmeterParams.from_dict(s["voltmeter"])
-            if "ideal" in s:
-                s["ideal"] = IdealParams.from_dict(s["ideal"])
-            d["sensor"] = dataclass_from_dict(SensorSpec, s, what="script 'sensor'")
+            d["sensor"] = sensor_spec_from_dict(d["sensor"], what="script 'sensor'")
         return dataclass_from_dict(cls, d, what="FlareScript")
 
     def to_json(self) -> str:
@@ -329,6 +321,25 @@ class FlareScript:
         except json.JSONDecodeError as exc:
             raise SimError(f"a script must be JSON: {exc}") from None
         return cls.from_dict(data)
+
+
+def sensor_spec_from_dict(data: Any, what: str = "the sensor") -> SensorSpec:
+    """A :class:`SensorSpec` from its :func:`dataclasses.asdict` form (nested params included).
+
+    Examples
+    --------
+    >>> spec = SensorSpec(model="ideal")
+    >>> sensor_spec_from_dict(dataclasses.asdict(spec)) == spec
+    True
+    """
+    if not isinstance(data, Mapping):
+        raise SimError(f"{what} must be a mapping")
+    d = dict(data)
+    if "voltmeter" in d:
+        d["voltmeter"] = VoltmeterParams.from_dict(d["voltmeter"])
+    if "ideal" in d:
+        d["ideal"] = IdealParams.from_dict(d["ideal"])
+    return dataclass_from_dict(SensorSpec, d, what=what)
 
 
 def _plain(obj: Any) -> dict[str, Any]:
