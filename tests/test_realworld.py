@@ -22,7 +22,6 @@ from edeflare.realworld import (
     PairingError,
     Polygon,
     Signature,
-    _ncc,
     clean_reference,
     detect_light_source,
     draw_noise,
@@ -39,6 +38,7 @@ from edeflare.realworld import (
     polarity_signature,
     scan_recording,
 )
+from edeflare.realworld.align import _ncc
 
 SIZE = (96, 72)
 LIGHT = (48, 36, 4)  # cx, cy, r of the strobe in the synthetic scenes

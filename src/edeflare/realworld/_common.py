@@ -1,0 +1,77 @@
+"""Helpers and constants shared by the :mod:`edeflare.realworld` modules."""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import numpy as np
+
+from ..errors import EdeflareError, ParameterError
+from ..events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size
+
+MANIFEST_FORMAT = "edeflare-pairs/1"
+LOW_CONFIDENCE = 0.1
+"""Alignments below this confidence are reported with a warning."""
+
+
+class PairingError(EdeflareError, ValueError):
+    """Two recordings cannot be paired as asked (the message names the files and says why)."""
+
+
+def _positive_int(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer, float)):
+        raise ParameterError(f"{name} must be a positive integer, got {value!r}")
+    if isinstance(value, float) and not value.is_integer():
+        raise ParameterError(f"{name} must be a whole number of µs, got {value!r}")
+    if int(value) <= 0:
+        raise ParameterError(f"{name} must be positive, got {value!r}")
+    return int(value)
+
+
+def _check_mask(mask: Any, sensor_size: SensorSize | None) -> tuple[np.ndarray, SensorSize]:
+    mask = np.asarray(mask)
+    if mask.ndim != 2 or mask.dtype != bool:
+        raise ParameterError(f"mask must be a boolean (H, W) array, got {mask.dtype} {mask.shape}")
+    size = (mask.shape[1], mask.shape[0])
+    if sensor_size is not None and check_sensor_size(sensor_size) != size:
+        raise ParameterError(f"mask shape {mask.shape} (H, W) does not match sensor {sensor_size}")
+    return mask, size
+
+
+def _progress(total: int | None, desc: str, enabled: bool, unit: str = "ev") -> Any:
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit=unit,
+        unit_scale=unit == "ev",
+        disable=None if enabled else True,
+        leave=False,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
+
+
+def _pixel_mask_of(events: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    return mask[events["y"], events["x"]]
+
+
+def _count_map(data: np.ndarray, sensor_size: SensorSize | None) -> np.ndarray:
+    """``(H, W)`` float64 counts from events (needs ``sensor_size``) or a 2-D map."""
+    if isinstance(data, np.ndarray) and data.dtype == EVENT_DTYPE:
+        if sensor_size is None:
+            raise ParameterError("sensor_size is required with events")
+        width, height = check_sensor_size(sensor_size)
+        check_events(data, (width, height))
+        flat = data["y"].astype(np.int64) * width + data["x"]
+        return np.bincount(flat, minlength=width * height).reshape(height, width).astype(float)
+    counts = np.asarray(data, dtype=np.float64)
+    if counts.ndim != 2:
+        raise ParameterError(f"expected events or an (H, W) count map, got shape {counts.shape}")
+    if sensor_size is not None and check_sensor_size(sensor_size) != counts.shape[::-1]:
+        raise ParameterError(f"count map {counts.shape} (H, W) does not match sensor {sensor_size}")
+    if not np.isfinite(counts).all() or (counts < 0).any():
+        raise ParameterError("count map must hold finite non-negative values")
+    return counts
