@@ -4,8 +4,9 @@ Every method, learned or classical, is a callable
 ``method(events, sensor_size, *, rng=None) -> events`` made by name:
 
 >>> import edeflare
->>> edeflare.list_methods()
-['efr', 'model', 'pfd-a', 'pfd-b', 'raw', 'voxel']
+>>> edeflare.list_methods()  # doctest: +NORMALIZE_WHITESPACE
+['dv-bafilter', 'dv-fastdecay', 'dv-knoise', 'efr', 'model', 'pfd-a', 'pfd-b', 'raw',
+ 'voxel']
 >>> pfd_b = edeflare.create_method("pfd-b", window_us=25_000)
 
 ============  =========================================================================
@@ -16,6 +17,8 @@ Every method, learned or classical, is a callable
 ``efr``       EFR linear comb filter (:mod:`edeflare.baselines.efr`), paper settings
 ``pfd-a``     PFD with ``score_select = 1`` (:mod:`edeflare.baselines.pfd`)
 ``pfd-b``     PFD with ``score_select = 0``
+``dv-*``      dv-processing's noise filters (:mod:`edeflare.baselines.dv`, the ``dv``
+              extra): ``dv-fastdecay``, ``dv-bafilter``, ``dv-knoise``, their defaults
 ============  =========================================================================
 
 :func:`deflare_file` streams any readable file through any method window by
@@ -613,6 +616,51 @@ def _pfd_factory(score: str) -> MethodFactory:
 
 register_method("pfd-a", _pfd_factory("A"))
 register_method("pfd-b", _pfd_factory("B"))
+
+
+class _DvStreamer(Streamer):
+    def __init__(self, filt: Any) -> None:
+        self.filter = filt
+
+    def process(self, events: np.ndarray, until_us: int) -> np.ndarray:
+        return self.filter.filter(events)
+
+
+class DvMethod(Method):
+    """A dv-processing noise filter (see :mod:`edeflare.baselines.dv`; needs the ``dv`` extra)."""
+
+    def __init__(self, filter_name: str, **params: Any) -> None:
+        from .baselines.dv import _check_params
+
+        super().__init__(**_check_params(filter_name, params))  # validate now
+        self.filter_name = filter_name
+
+    def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
+        from .baselines.dv import DvFilter
+
+        return _DvStreamer(DvFilter(sensor_size, self.filter_name, **self.params))
+
+
+@register_method("dv-fastdecay")
+def _make_dv_fastdecay(
+    half_life_us: int = 10_000, subdivision_factor: int = 4, noise_threshold: float = 6.0
+) -> Method:
+    return DvMethod(
+        "fastdecay",
+        half_life_us=half_life_us,
+        subdivision_factor=subdivision_factor,
+        noise_threshold=noise_threshold,
+    )
+
+
+@register_method("dv-bafilter")
+def _make_dv_bafilter(duration_us: int = 2_000) -> Method:
+    return DvMethod("bafilter", duration_us=duration_us)
+
+
+@register_method("dv-knoise")
+def _make_dv_knoise(time_delta_us: int = 1_000) -> Method:
+    return DvMethod("knoise", time_delta_us=time_delta_us)
 
 
 # ---------------------------------------------------------------------------------------

@@ -10,6 +10,8 @@ from __future__ import annotations
 import os
 
 __all__ = [
+    "AnnotationError",
+    "DependencyError",
     "EdeflareError",
     "EventFileError",
     "EventsError",
@@ -54,3 +56,17 @@ class EventFileError(EdeflareError, ValueError):
 
 class UnknownFormatError(EventFileError):
     """The file's suffix names no format edeflare can read or write."""
+
+
+class AnnotationError(EventFileError):
+    """A light-source annotation (regions JSON) is malformed or lies off the sensor.
+
+    Examples
+    --------
+    >>> str(AnnotationError("lights.json", "source 0: circle lies off the 640x480 sensor"))
+    'lights.json: source 0: circle lies off the 640x480 sensor'
+    """
+
+
+class DependencyError(EdeflareError, ImportError):
+    """An optional dependency is missing; the message names the extra that installs it."""

@@ -14,7 +14,8 @@ from ._common import GROUP_HELP, SIZE_HELP, sensor_size_arg
 
 HELP = (
     "De-flare an event file, streaming: with the bundled E-DeflareNet (default), "
-    "a model of yours (--model PATH), or a baseline (raw, voxel, efr, pfd-a, pfd-b)."
+    "a model of yours (--model PATH), or a baseline (raw, voxel, efr, pfd-a, pfd-b, "
+    "dv-fastdecay, dv-bafilter, dv-knoise: dv-processing's filters, the dv extra)."
 )
 
 
