@@ -14,12 +14,38 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import EdeflareError
-from . import ablate, benchmark, convert, deflare, demo, evaluate, info, pair, simulate, train, view
+from . import (
+    ablate,
+    benchmark,
+    convert,
+    deflare,
+    demo,
+    evaluate,
+    info,
+    pair,
+    score,
+    simulate,
+    train,
+    view,
+)
 
 __all__ = ["build_parser", "main"]
 
 # Order of appearance in --help.
-COMMANDS = (info, convert, view, deflare, evaluate, benchmark, simulate, pair, train, ablate, demo)
+COMMANDS = (
+    info,
+    convert,
+    view,
+    deflare,
+    evaluate,
+    score,
+    benchmark,
+    simulate,
+    pair,
+    train,
+    ablate,
+    demo,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
