@@ -74,6 +74,7 @@ __all__ = [
     "MethodScore",
     "Regions",
     "ScoreReport",
+    "bundled_lights",
     "classify_events",
     "combined_score",
     "detect_lights",
@@ -364,6 +365,29 @@ def load_lights(path: str | os.PathLike[str], sensor_size: SensorSize | None = N
         return Lights(tuple(sources), **options)
     except (ParameterError, TypeError) as exc:
         raise AnnotationError(path, str(exc)) from None
+
+
+def bundled_lights(recording: str | os.PathLike[str] | None = None) -> Path | list[str]:
+    """The annotation bundled for a real recording (by file name or stem), or their names.
+
+    Annotations of the recordings in the project's real test set live in
+    ``edeflare/assets/lights/`` (with a README on how they were made and checked).
+
+    Examples
+    --------
+    >>> bundled_lights()
+    ['davis346_flicker_lamps', 'prophesee_gen3_rotating_light']
+    >>> bundled_lights("some/where/davis346_flicker_lamps.aedat4").name
+    'davis346_flicker_lamps.json'
+    """
+    folder = Path(__file__).resolve().parent / "assets" / "lights"
+    names = sorted(p.stem for p in folder.glob("*.json"))
+    if recording is None:
+        return names
+    stem = Path(recording).name.split(".")[0]
+    if stem not in names:
+        raise ParameterError(f"no bundled annotation for {stem!r}; bundled: {', '.join(names)}")
+    return folder / f"{stem}.json"
 
 
 def detect_lights(
