@@ -23,6 +23,7 @@ import numba as _numba
 if "NUMBA_THREADING_LAYER" not in _os.environ:
     _numba.config.THREADING_LAYER = "workqueue"
 
+from ._version import __version__
 from .deflare import create_method, deflare, deflare_file, list_methods
 from .errors import (
     EdeflareError,
@@ -44,8 +45,6 @@ from .events import (
 )
 from .io import iter_windows, open_events, read_events, write_event_chunks, write_events
 from .voxel import decode, encode, encode_polarity
-
-__version__ = "0.1.0"
 
 __all__ = [
     "EVENT_DTYPE",

@@ -56,9 +56,10 @@ import numpy as np
 from ..errors import EdeflareError, EventFileError, ParameterError
 from ..events import SensorSize, check_sensor_size
 from ..io.dsec import DsecReader
+from .kinds import KindSequence, register_kind
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .generate import Recipe
+    from .recipe import Recipe
 
 __all__ = [
     "DEFAULT_WINDOWS",
@@ -409,15 +410,21 @@ def read_window(
 
 
 def dsec_sequence(
-    recipe: Recipe, index: int
+    config: DsecFlareConfig,
+    index: int,
+    *,
+    duration_us: int = 100_000,
+    sensor_size: SensorSize = (640, 480),
+    name: str = "dsec-flare",
 ) -> tuple[dict[str, np.ndarray], DsecWindow, dict[str, Any], dict[str, float]]:
-    """Window ``index`` of a ``"dsec"`` recipe: ``({"input": events}, provenance, background,
+    """Window ``index`` of a DSEC-Flare config: ``({"input": events}, provenance, background,
     seconds)``. There is no ground truth; the file holds the ``input`` group only.
+
+    ``name`` is the recipe's, for the error when ``config.root`` is unset.
 
     Examples
     --------
-    >>> import dataclasses, tempfile, pathlib
-    >>> from edeflare.data.generate import RECIPES
+    >>> import tempfile, pathlib
     >>> from edeflare.events import make_events
     >>> from edeflare.io.dsec import write_dsec
     >>> root = pathlib.Path(tempfile.mkdtemp())
@@ -425,16 +432,15 @@ def dsec_sequence(
     >>> t = np.arange(0, 2_000_000, 500)
     >>> write_dsec(f, make_events(t, t % 64, t % 48, t % 2), (64, 48))
     >>> cfg = DsecFlareConfig(root=str(root), windows=(WindowSpec("zurich_city_09_c", 1.0, 2),))
-    >>> r = dataclasses.replace(RECIPES["dsec-flare"], dsec=cfg, sensor_size=(64, 48))
-    >>> streams, window, _, _ = dsec_sequence(r, 1)
+    >>> streams, window, _, _ = dsec_sequence(cfg, 1, sensor_size=(64, 48))
     >>> list(streams), window.start_us, streams["input"].size
     (['input'], 1000000, 200)
     """
     t0 = time.perf_counter()
-    cfg: DsecFlareConfig = recipe.dsec
+    cfg = config
     if cfg.root is None:
         raise DsecFlareError(
-            f"recipe {recipe.name!r} needs the local DSEC folder: --dsec-root PATH "
+            f"recipe {name!r} needs the local DSEC folder: --dsec-root PATH "
             "(or dsec=DsecFlareConfig(root=...))"
         )
     spec, k = expand_windows(cfg.windows)[index]
@@ -443,8 +449,8 @@ def dsec_sequence(
         path,
         spec,
         k,
-        duration_us=recipe.duration_us,
-        sensor_size=recipe.sensor_size,
+        duration_us=duration_us,
+        sensor_size=sensor_size,
         rectify=cfg.rectify,
     )
     window = DsecWindow(
@@ -452,9 +458,46 @@ def dsec_sequence(
         file=path.relative_to(cfg.root).as_posix(),
         start_us=int(start),
         t_offset_us=int(offset),
-        duration_us=int(recipe.duration_us),
+        duration_us=int(duration_us),
         rectified=cfg.rectify,
         category=DSEC_FLARE_SEQUENCES.get(spec.sequence, "other"),
     )
     background = {"kind": "recorded", "file": window.file, "start_us": window.start_us}
     return {"input": events}, window, background, {"background": time.perf_counter() - t0}
+
+
+def _check(recipe: Recipe) -> None:
+    """Find the recipe's DSEC files before a run (errors surface early)."""
+    if recipe.dsec.root is None:
+        raise DsecFlareError(
+            f"recipe {recipe.name!r} needs the local DSEC folder: --dsec-root PATH "
+            "(or dsec=DsecFlareConfig(root=...))"
+        )
+    find_dsec_sequences(recipe.dsec.root, recipe.dsec.sequences)
+
+
+def _identity(config: dict[str, Any]) -> dict[str, Any]:
+    """The same DSEC data anywhere gives the same dataset: the root is not recorded."""
+    return {**config, "root": None}
+
+
+@register_kind(
+    "dsec",
+    config_field="dsec",
+    config_type=DsecFlareConfig,
+    test_only=True,
+    uses_background=False,
+    count=lambda config: len(expand_windows(config.windows)),
+    check=_check,
+    identity=_identity,
+)
+def _make_sequence(recipe: Recipe, index: int, source: Any = None) -> KindSequence:
+    """The ``"dsec"`` kind: :func:`dsec_sequence` of the recipe's ``dsec`` config."""
+    streams, window, background, seconds = dsec_sequence(
+        recipe.dsec,
+        index,
+        duration_us=recipe.duration_us,
+        sensor_size=recipe.sensor_size,
+        name=recipe.name,
+    )
+    return KindSequence(streams, window, background, seconds)

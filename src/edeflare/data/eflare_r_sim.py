@@ -35,7 +35,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..sim.background import Background, BackgroundSource, NightStreet
-from ..sim.optics_scene import OpticsScene, draw_optics_scene, simulate_optics_pair
+from ..sim.optics_scene import (
+    OpticsScene,
+    OpticsSceneConfig,
+    draw_optics_scene,
+    simulate_optics_pair,
+)
+from .kinds import KindSequence, register_kind
+from .sources import cached_source
 
 if TYPE_CHECKING:  # pragma: no cover
     from .generate import Recipe
@@ -98,3 +105,16 @@ def optics_sequence(
     )
     seconds = {"background": drawn, **pair.seconds}
     return {"input": pair.input, "gt": pair.gt}, scene, description, seconds
+
+
+@register_kind("optics", config_field="optics", config_type=OpticsSceneConfig, test_only=True)
+def _make_sequence(
+    recipe: Recipe, index: int, source: BackgroundSource | None = None
+) -> KindSequence:
+    """The ``"optics"`` kind: :func:`optics_sequence` with the recipe's background source."""
+    if recipe.background == "recorded":
+        source = source or cached_source(recipe)
+    else:
+        source = None
+    streams, scene, background, seconds = optics_sequence(recipe, index, source)
+    return KindSequence(streams, scene, background, seconds)

@@ -7,8 +7,13 @@
 - :mod:`~edeflare.sim.render`: the flare video and the light video of a script, streamed.
 - :mod:`~edeflare.sim.dvs`: streaming, seeded event simulators fed frame by frame
   (DVS-Voltmeter, the ideal log-intensity model).
+- :mod:`~edeflare.sim.camera`: simulators of one camera (one sensor draw, a random
+  stream per video).
 - :mod:`~edeflare.sim.stage1`: both videos of a script through one sensor: flare and
   light events.
+- :mod:`~edeflare.sim.pair`: the one streaming frame loop (:func:`run_frames` and its
+  per-frame observers) and :func:`simulate_pair`, one input / ground-truth pair of a
+  script over a background.
 
 Examples
 --------
@@ -34,6 +39,7 @@ from .dvs import (
 )
 from .flare import GhostSpec, GlareSpec, find_flare7k_pairs, light_source, scattering_flare
 from .optics import PSFConfig, PSFPair, psf_pair
+from .pair import SimulatedPair, run_frames, simulate_pair
 from .render import Renderer, flare7k_names, render
 from .script import FlareScript, ScriptConfig, draw_script
 from .stage1 import FlareEvents, sensor_pair, simulate_flare_events
@@ -52,6 +58,7 @@ __all__ = [
     "Renderer",
     "ScriptConfig",
     "SimError",
+    "SimulatedPair",
     "VoltmeterParams",
     "VoltmeterSimulator",
     "draw_script",
@@ -62,8 +69,10 @@ __all__ = [
     "make_simulator",
     "psf_pair",
     "render",
+    "run_frames",
     "scattering_flare",
     "sensor_pair",
     "simulate_flare_events",
     "simulate_frames",
+    "simulate_pair",
 ]

@@ -66,8 +66,8 @@ from ._validation import (
     dataclass_from_dict,
     make_rng,
 )
+from .camera import camera_simulator
 from .compose import AccumulatedIntensity, AccumulationParams, CountIntensity, IntensityField
-from .dvs import IdealSimulator, VoltmeterSimulator, draw_thresholds
 from .script import SensorSpec
 
 __all__ = [
@@ -581,27 +581,6 @@ def _render(tex, out, scale, fx, fy, ox, oy):  # pragma: no cover - compiled
             top = (1.0 - wx) * tex[iy, ix] + wx * tex[iy, ix + 1]
             bottom = (1.0 - wx) * tex[iy + 1, ix] + wx * tex[iy + 1, ix + 1]
             out[y, x] = (1.0 - wy) * top + wy * bottom
-
-
-def camera_simulator(
-    spec: SensorSpec,
-    sensor_size: SensorSize,
-    *,
-    rng: np.random.Generator | int | None = None,
-) -> VoltmeterSimulator | IdealSimulator:
-    """A simulator of the camera ``spec`` with its own random stream ``rng``.
-
-    For the ideal model the per-pixel thresholds are the camera's (derived from
-    ``spec.seed`` as :func:`edeflare.sim.stage1.sensor_pair` derives them),
-    so the background sees the same pixels as the flare and light videos.
-    """
-    size = check_sensor_size(sensor_size)
-    gen = make_rng(rng)
-    if spec.model == "voltmeter":
-        return VoltmeterSimulator(size, spec.voltmeter, rng=gen)
-    camera_seq = np.random.SeedSequence(spec.seed).spawn(3)[2]
-    thresholds = draw_thresholds(size, spec.ideal, rng=np.random.default_rng(camera_seq))
-    return IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=gen)
 
 
 def _noise_events(

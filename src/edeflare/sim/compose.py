@@ -828,7 +828,7 @@ def forward_pair(
         Linear intensity frames ``(H, W)`` on one scale.
     simulator_ob, simulator_gt : event simulators
         Two simulators of the same camera (e.g. from
-        :func:`edeflare.sim.stage1.sensor_pair`).
+        :func:`edeflare.sim.camera.sensor_pair`).
 
     Examples
     --------
@@ -840,13 +840,13 @@ def forward_pair(
     >>> ob.size, gt.size
     (3, 0)
     """
-    chunks_ob, chunks_gt = [], []
-    for t_us, bg, flare, light in frames:
-        bg64 = np.asarray(bg, dtype=np.float64)
-        chunks_ob.append(simulator_ob.feed(bg64 + flare, t_us))
-        chunks_gt.append(simulator_gt.feed(bg64 + light, t_us))
-    empty = np.empty(0, dtype=EVENT_DTYPE)
-    return (
-        np.concatenate(chunks_ob) if chunks_ob else empty,
-        np.concatenate(chunks_gt) if chunks_gt else empty,
-    )
+    from .pair import EventRecorder, run_frames  # the loop's module builds on this one
+
+    def bg64(f: Mapping[str, np.ndarray]) -> np.ndarray:
+        return np.asarray(f["background"], dtype=np.float64)
+
+    ob = EventRecorder(simulator_ob, lambda f: bg64(f) + f["flare"])
+    gt = EventRecorder(simulator_gt, lambda f: bg64(f) + f["light"])
+    video = ((t, {"background": b, "flare": f, "light": lt}) for t, b, f, lt in frames)
+    run_frames(video, [ob, gt])
+    return ob.events(), gt.events()

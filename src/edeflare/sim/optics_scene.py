@@ -61,7 +61,6 @@ import copy
 import dataclasses
 import json
 import math
-import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -78,11 +77,13 @@ from ._validation import (
     dataclass_from_dict,
     make_rng,
 )
-from .background import Background, NightStreet, camera_simulator
+from .background import Background, NightStreet
+from .camera import camera_simulator
 from .compose import Components, compose_pair
 from .dvs import DVS346_K, IdealParams, VoltmeterParams
 from .flare import WHITE, light_source, scattering_flare
 from .optics import PSFConfig, psf_pair
+from .pair import EventRecorder, StageTimer, run_frames
 from .render import _warp_add
 from .script import SensorSpec, sensor_spec_from_dict
 
@@ -733,53 +734,50 @@ def simulate_optics_pair(
     """
     size = check_sensor_size(sensor_size)
     gen = make_rng(rng)
-    seconds = {"render": 0.0, "simulate": 0.0, "compose": 0.0}
-    t0 = time.perf_counter()
+    timer = StageTimer(("render", "simulate", "compose"))
     street = background if isinstance(background, NightStreet) else None
-    renderer = OpticsRenderer(scene, size, street=street)
-    seconds["render"] += time.perf_counter() - t0
+    with timer("render"):
+        renderer = OpticsRenderer(scene, size, street=street)
     # One camera: both passes get simulators seeded identically (same per-pixel streams).
-    sims = [
-        camera_simulator(
-            scene.sensor, size, rng=np.random.default_rng(np.random.SeedSequence(scene.sensor.seed))
+    recorders = [
+        EventRecorder(
+            camera_simulator(
+                scene.sensor,
+                size,
+                rng=np.random.default_rng(np.random.SeedSequence(scene.sensor.seed)),
+            ),
+            lens,
         )
-        for _ in _LENSES
+        for lens in _LENSES
     ]
-    chunks: list[list[np.ndarray]] = [[], []]
     recorded = isinstance(background, Background)
-    for t in scene.frame_times_us().tolist():
-        t0 = time.perf_counter()
-        if recorded:
-            frames = [np.minimum(renderer.sources_frame(t, lens), WHITE) for lens in _LENSES]
-        else:
-            frames = list(renderer.frame(t))
-        t1 = time.perf_counter()
-        for sim, frame, out in zip(sims, frames, chunks, strict=True):
-            out.append(sim.feed(frame, t))
-        seconds["render"] += t1 - t0
-        seconds["simulate"] += time.perf_counter() - t1
-    t0 = time.perf_counter()
+
+    def frames() -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+        for t in scene.frame_times_us().tolist():
+            if recorded:
+                images = [np.minimum(renderer.sources_frame(t, lens), WHITE) for lens in _LENSES]
+            else:
+                images = list(renderer.frame(t))
+            yield t, dict(zip(_LENSES, images, strict=True))
+
+    run_frames(frames(), recorders, timer=timer)
     duration = scene.duration_us
-    streams = []
-    for parts in chunks:
-        events = np.concatenate(parts)
-        streams.append(events[: int(np.searchsorted(events["t"], duration))])
-    ob, gt = streams
-    if street is not None:
-        noise = _noise(float(street.params["noise_rate_hz"]), size, duration, gen)
-        ob, gt = merge_events(ob, noise), merge_events(gt, noise)
-    elif recorded:
-        assert isinstance(background, Background)
-        components = Components.from_fields(
-            {"background": background.events, "flare": ob, "light": gt},
-            {
-                "background": background.intensity,
-                "flare": SourceIntensity(renderer, "ob"),
-                "light": SourceIntensity(renderer, "gt"),
-            },
-            0,
-            duration,
-        )
-        ob, gt = compose_pair(components, "physical", rng=gen)
-    seconds["compose"] += time.perf_counter() - t0
-    return OpticsPair(ob, gt, seconds)
+    with timer("compose"):
+        ob, gt = (rec.events(duration) for rec in recorders)
+        if street is not None:
+            noise = _noise(float(street.params["noise_rate_hz"]), size, duration, gen)
+            ob, gt = merge_events(ob, noise), merge_events(gt, noise)
+        elif recorded:
+            assert isinstance(background, Background)
+            components = Components.from_fields(
+                {"background": background.events, "flare": ob, "light": gt},
+                {
+                    "background": background.intensity,
+                    "flare": SourceIntensity(renderer, "ob"),
+                    "light": SourceIntensity(renderer, "gt"),
+                },
+                0,
+                duration,
+            )
+            ob, gt = compose_pair(components, "physical", rng=gen)
+    return OpticsPair(ob, gt, timer.seconds)

@@ -15,10 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..events import EVENT_DTYPE, SensorSize, check_sensor_size
-from .dvs import IdealSimulator, VoltmeterSimulator, draw_thresholds
+from ..events import SensorSize
+from .camera import sensor_pair
+from .pair import EventRecorder, run_frames
 from .render import Renderer
-from .script import FlareScript, SensorSpec
+from .script import FlareScript
 
 __all__ = ["FlareEvents", "sensor_pair", "simulate_flare_events"]
 
@@ -32,33 +33,6 @@ class FlareEvents:
     sensor_size: tuple[int, int]
 
 
-def sensor_pair(
-    spec: SensorSpec, sensor_size: SensorSize
-) -> tuple[VoltmeterSimulator | IdealSimulator, VoltmeterSimulator | IdealSimulator]:
-    """Two simulators of one camera (``spec``), for the flare and the light video.
-
-    Examples
-    --------
-    >>> a, b = sensor_pair(SensorSpec(model="ideal", seed=1), (4, 4))
-    >>> bool((a._c_on == b._c_on).all())
-    True
-    """
-    size = check_sensor_size(sensor_size)
-    flare_seq, light_seq, camera_seq = np.random.SeedSequence(spec.seed).spawn(3)
-    flare_rng = np.random.default_rng(flare_seq)
-    light_rng = np.random.default_rng(light_seq)
-    if spec.model == "voltmeter":
-        return (
-            VoltmeterSimulator(size, spec.voltmeter, rng=flare_rng),
-            VoltmeterSimulator(size, spec.voltmeter, rng=light_rng),
-        )
-    thresholds = draw_thresholds(size, spec.ideal, rng=np.random.default_rng(camera_seq))
-    return (
-        IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=flare_rng),
-        IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=light_rng),
-    )
-
-
 def simulate_flare_events(
     script: FlareScript,
     sensor_size: SensorSize = (640, 480),
@@ -66,6 +40,9 @@ def simulate_flare_events(
     flare7k: str | os.PathLike[str] | None = None,
 ) -> FlareEvents:
     """Render ``script`` frame by frame and simulate both videos' events.
+
+    The frames go through :func:`edeflare.sim.pair.run_frames` to two simulators
+    of the script's camera (:func:`~edeflare.sim.camera.sensor_pair`).
 
     Examples
     --------
@@ -77,13 +54,7 @@ def simulate_flare_events(
     """
     renderer = Renderer(script, sensor_size, flare7k=flare7k)
     sim_flare, sim_light = sensor_pair(script.sensor, renderer.sensor_size)
-    flare_chunks, light_chunks = [], []
-    for t_us, flare, light in renderer:
-        flare_chunks.append(sim_flare.feed(flare, t_us))
-        light_chunks.append(sim_light.feed(light, t_us))
-    empty = np.empty(0, dtype=EVENT_DTYPE)
-    return FlareEvents(
-        np.concatenate(flare_chunks) if flare_chunks else empty,
-        np.concatenate(light_chunks) if light_chunks else empty,
-        renderer.sensor_size,
-    )
+    flare, light = EventRecorder(sim_flare, "flare"), EventRecorder(sim_light, "light")
+    frames = ((t_us, {"flare": f, "light": lt}) for t_us, f, lt in renderer)
+    run_frames(frames, [flare, light])
+    return FlareEvents(flare.events(), light.events(), renderer.sensor_size)
