@@ -7,7 +7,12 @@ name                architecture                                 parameters
 ``unet3d.lite``     residual 3D U-Net, 8/16/32/64                    442,441
 ``unet2d.lite``     residual 2D U-Net, bins as channels, 16/32/64    146,424
 ``unet2d.tiny``     residual 2D U-Net, bins as channels, 8/16/32      ~37 k
+``mask.lite``       flare mask on 4x4-pixel cells, 8/16/32/64        150,096
+``mask.fast``       flare mask on 8x8-pixel cells, 8/16/32/64        150,096
 ==================  ===========================================  ==========
+
+The ``mask`` presets (:mod:`edeflare.models.flaremask`) estimate a keep
+probability per cell below the sensor's resolution and decide per event.
 
 Every model maps ``(N, 1, bins, H, W)`` voxel grids to grids of the same
 shape, is the identity at initialisation, and takes any ``H, W``.
@@ -28,6 +33,7 @@ from typing import Any
 
 from torch import nn
 
+from .flaremask import FlareMaskNet
 from .unet2d import ResidualUNet2d
 from .unet3d import ResidualUNet3d
 
@@ -104,5 +110,21 @@ register_model(
         ResidualUNet2d,
         {"bins": 8, "features": (8, 16, 32), "groups": 4},
         "the 2D U-Net at half width, for the fastest CPU inference",
+    )
+)
+register_model(
+    ModelPreset(
+        "mask.lite",
+        FlareMaskNet,
+        {"bins": 8, "scale": 4, "features": (8, 16, 32, 64), "groups": 4},
+        "flare mask on 4x4-pixel cells, decided per event (the default: real-time on CPU)",
+    )
+)
+register_model(
+    ModelPreset(
+        "mask.fast",
+        FlareMaskNet,
+        {"bins": 8, "scale": 8, "features": (8, 16, 32, 64), "groups": 4},
+        "flare mask on 8x8-pixel cells, for embedded use",
     )
 )

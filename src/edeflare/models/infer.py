@@ -12,6 +12,13 @@ grid is decoded back to events with one of two decoders:
 
 Decoding draws come from a generator seeded by ``(seed, window start)``, so
 the output does not depend on batching or on where a stream is resumed.
+
+Mask models (:class:`~edeflare.models.flaremask.FlareMaskNet`, the ``mask.*``
+presets) skip the full-resolution grid: their low-resolution features are
+counted straight from the events and each input event is kept or dropped by
+the mask at its own pixel, bin and polarity
+(:func:`~edeflare.models.flaremask.event_keep_mask`); they add no events, so
+both decoders give the same result.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import torch
 from ..errors import EdeflareError
 from ..events import SensorSize, check_events
 from ..voxel import decode, decode_keep, encode
+from .flaremask import FlareMaskNet, event_features, event_keep_mask
 from .weights import ModelCard, load_model
 
 __all__ = ["DECODERS", "ModelDeflarer", "bundled_weights"]
@@ -147,6 +155,20 @@ class ModelDeflarer:
         if batch:
             yield from self._run(batch, sensor_size, lo, hi)
 
+    def _run_mask(
+        self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
+    ) -> Iterator[tuple[int, np.ndarray]]:
+        net = self.model
+        assert isinstance(net, FlareMaskNet)
+        w, scale = self.window_us, net.scale
+        feats = np.stack(
+            [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
+        )
+        with torch.inference_mode():
+            logits = net.logits(torch.from_numpy(feats).to(self.device)).float().cpu().numpy()
+        for (start, events), lg in zip(batch, logits, strict=True):
+            yield start, events[event_keep_mask(lg, events, start, w, scale)]
+
     def _run(
         self,
         batch: list[tuple[int, np.ndarray]],
@@ -154,6 +176,9 @@ class ModelDeflarer:
         lo: int | None,
         hi: int | None,
     ) -> Iterator[tuple[int, np.ndarray]]:
+        if isinstance(self.model, FlareMaskNet):
+            yield from self._run_mask(batch, sensor_size)
+            return
         bins, w = self.card.bins, self.window_us
         grids = [encode(ev, sensor_size, s, w, bins) for s, ev in batch]
         for (start, events), grid, restored in zip(batch, grids, self._restore(grids), strict=True):
