@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -12,7 +13,6 @@ import pytest
 import edeflare
 from edeflare.cli import main
 from edeflare.errors import AnnotationError, EdeflareError, EventFileError, ParameterError
-from edeflare.events import make_events
 from edeflare.eval.score import (
     Lights,
     LightSource,
@@ -24,6 +24,7 @@ from edeflare.eval.score import (
     score_events,
     score_recording,
 )
+from edeflare.events import make_events
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 SIZE = (60, 50)
@@ -132,6 +133,18 @@ def test_scores_by_hand():
     assert method.light_kept == 0.75 and method.background_kept == 0.5
     assert method.combined == pytest.approx(3 / (1.5 + 1 / 0.75 + 2))
     assert method.events_out == 10 and method.seconds is None and method.rtf is None
+
+
+def test_background_left_out_of_the_combined_score_when_it_is_noise():
+    ev, lights = _scene()
+    keep = np.ones(ev.size, dtype=bool)
+    keep[[4, 5, 8, 9, *range(10, 20)]] = False  # 2 of 4 halo, both ghosts, all background
+    noise = dataclasses.replace(lights, score_background=False)
+    (s,) = score_events(ev, {"m": ev[keep]}, noise, SIZE)
+    assert s.background_kept == 0.0 and s.flare_removed == pytest.approx(4 / 6)
+    assert s.combined == pytest.approx(2 / (1.5 + 1))  # flare removed and light kept only
+    (s,) = score_events(ev, {"m": ev[keep]}, lights, SIZE)
+    assert s.combined == 0.0
 
 
 def test_added_events_do_not_make_up_for_removed_ones_in_other_windows():

@@ -35,8 +35,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from edeflare import read_events
+from edeflare.eval.score import Lights, LightSource, classify_events
 from edeflare.realworld import detect_light_source
-from edeflare.score import Lights, LightSource, classify_events
 from edeflare.viz import event_frame, grid, save_image
 
 DATE = "2026-11-23"
@@ -102,6 +102,8 @@ def checks(events: np.ndarray, size: tuple[int, int], lights: Lights, n_src: int
     n = events.size
     share = {r: round(float(regions.mask(r).sum()) / n, 4) for r in
              ("light", "rim", "halo", "ghost", "background")}  # fmt: skip
+    bg = events[regions.background]
+    _, per_pixel = np.unique(bg["y"].astype(np.int64) * size[0] + bg["x"], return_counts=True)
     t = events["t"]
     inside, total, offsets, fractions = 0, 0, [], []
     for w0 in range(int(t[0]), int(t[-1]) + 1, 5_000):
@@ -131,6 +133,11 @@ def checks(events: np.ndarray, size: tuple[int, int], lights: Lights, n_src: int
         "detected_centre_offset_px_median": round(float(np.median(offsets)), 2),
         "detected_centre_offset_px_max": round(float(np.max(offsets)), 2),
         "windows": len(fractions),
+        "background_events": int(bg.size),
+        "background_pixels": int(per_pixel.size),
+        "background_share_of_10_busiest_pixels": round(
+            float(np.sort(per_pixel)[-10:].sum()) / max(1, bg.size), 4
+        ),
     }
 
 
@@ -174,8 +181,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = [[round(float(a)), round(float(b), 1), round(float(c), 1), r] for a, b, c in track]
     gen3 = Lights(
         (LightSource.track(rows, name="rotating blob", ghost_radius_px=r),),
-        note="blob moving on a circle; ghost disc as large as the blob (its reflection "
-        "passes within 90 px of the blob)",
+        note="blob moving on a circle in the dark; ghost disc as large as the blob (its "
+        "reflection passes within 90 px of the blob); background: hot pixels only, not scored",
+        score_background=False,
     )
     # --- DAVIS346 ceiling lamps: fixed circles.
     name2 = "davis346_flicker_lamps.aedat4"
