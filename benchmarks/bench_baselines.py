@@ -19,7 +19,7 @@
 
 3. EFR's warm-up and shift-back options: events out, the first output time,
    the delay, and the paper's metrics (20 ms segments) against the scene's
-   flare-free ground truth (``edeflare.evaluate``), next to the raw input,
+   flare-free ground truth (``edeflare.eval.evaluate``), next to the raw input,
    so that the effect of each option on the tables is known.
 
 Run: ``python benchmarks/bench_baselines.py [--events 4000000] [--quick]``
@@ -121,7 +121,7 @@ def efr_options(observed: np.ndarray, clean: np.ndarray, metrics: bool) -> list[
             "delay_us": delay if options is not None else "",
         }
         if metrics:
-            from edeflare.evaluate import evaluate_streams, summarize
+            from edeflare.eval.evaluate import evaluate_streams, summarize
 
             segments = evaluate_streams(clean, out, SIZE, workers=1)
             for k, v in summarize(m for _, m in segments).means.items():

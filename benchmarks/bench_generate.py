@@ -41,8 +41,8 @@ from edeflare.data.generate import (
     generate_dataset,
     generate_sequence,
 )
-from edeflare.evaluate import evaluate_streams, summarize
-from edeflare.metrics import METRICS
+from edeflare.eval.evaluate import evaluate_streams, summarize
+from edeflare.eval.metrics import METRICS
 from edeflare.sim.background import camera_simulator
 from edeflare.sim.compose import (
     AccumulatedIntensity,

@@ -21,8 +21,13 @@ import time
 import numpy as np
 from _common import best_of, random_events, report
 
+from edeflare.eval.metrics import (
+    event_distances,
+    nearest_distances,
+    normalize_events,
+    segment_metrics,
+)
 from edeflare.events import merge_events
-from edeflare.metrics import event_distances, nearest_distances, normalize_events, segment_metrics
 
 SIZE, START, WIN = (640, 480), 1_000_000, 20_000
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from conftest import random_events
-from edeflare.benchmark import benchmark, read_sequence
 from edeflare.cli import main
-from edeflare.evaluate import evaluate_streams, summarize
+from edeflare.eval.benchmark import benchmark, read_sequence
+from edeflare.eval.evaluate import evaluate_streams, summarize
 from edeflare.events import merge_events
 from edeflare.io.dsec import write_dsec_groups
 

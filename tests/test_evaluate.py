@@ -11,11 +11,11 @@ import pytest
 from conftest import random_events
 from edeflare.cli import main
 from edeflare.errors import EventFileError
-from edeflare.evaluate import evaluate, evaluate_files, evaluate_streams, pair_files, summarize
+from edeflare.eval.evaluate import evaluate, evaluate_files, evaluate_streams, pair_files, summarize
+from edeflare.eval.metrics import METRICS, SegmentMetrics
+from edeflare.eval.tables import ResultsTable
 from edeflare.events import make_events, merge_events
 from edeflare.io import write_events
-from edeflare.metrics import METRICS, SegmentMetrics
-from edeflare.tables import ResultsTable
 
 SIZE = (101, 101)
 

@@ -9,14 +9,14 @@ import pytest
 
 from edeflare.demo import synthetic_flare_scene
 from edeflare.errors import ParameterError
-from edeflare.events import make_events
-from edeflare.flare_score import (
+from edeflare.eval.flare_score import (
     FlareGeometry,
     event_energy,
     flare_geometry,
     flare_score,
     locate_source,
 )
+from edeflare.events import make_events
 
 H, W = 120, 160
 

@@ -9,8 +9,7 @@ import pytest
 
 from conftest import random_events
 from edeflare.errors import EventsError
-from edeflare.events import make_events, merge_events
-from edeflare.metrics import (
+from edeflare.eval.metrics import (
     METRICS,
     SIGMA,
     chamfer_distance,
@@ -24,6 +23,7 @@ from edeflare.metrics import (
     pmse,
     segment_metrics,
 )
+from edeflare.events import make_events, merge_events
 from edeflare.voxel import encode_polarity
 
 # A 101x101 sensor makes one pixel exactly one normalised unit; a 1000 µs window makes 10 µs one.

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from conftest import random_events, same_events
-from edeflare.benchmark import read_sequence
 from edeflare.cli import main
 from edeflare.data.pairs import PairedWindows, list_sequences
 from edeflare.errors import EventFileError, ParameterError
-from edeflare.evaluate import evaluate
+from edeflare.eval.benchmark import read_sequence
+from edeflare.eval.evaluate import evaluate
 from edeflare.events import EVENT_DTYPE, center_crop, make_events
 from edeflare.io import read_events, write_events
 from edeflare.realworld import (

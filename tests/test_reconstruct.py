@@ -10,8 +10,8 @@ import pytest
 
 from conftest import random_events
 from edeflare.errors import ParameterError
+from edeflare.eval.reconstruct import LeakyIntegrator, display_scale, reconstruct, to_uint8
 from edeflare.events import empty_events, make_events
-from edeflare.reconstruct import LeakyIntegrator, display_scale, reconstruct, to_uint8
 
 SIZE = (16, 12)
 

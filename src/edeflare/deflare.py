@@ -34,6 +34,8 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import os
+import sys
+import types
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any
@@ -865,3 +867,18 @@ def deflare_file(
             stacklevel=2,
         )
     return DeflareStats(n_in, n_out, dropped)
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as :func:`deflare`: ``edeflare.deflare(events, size, "efr")``.
+
+    The package face offers the function ``edeflare.deflare`` and the module
+    ``edeflare.deflare`` (``edeflare.deflare.register_method``) under one name
+    without one shadowing the other.
+    """
+
+    def __call__(self, *args: Any, **kwargs: Any) -> np.ndarray:
+        return deflare(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule

@@ -140,8 +140,8 @@ def run_demo(
     import dataclasses
 
     from .data.generate import RECIPES, generate_sequence
-    from .evaluate import evaluate_streams, summarize
-    from .tables import ResultsTable
+    from .eval.evaluate import evaluate_streams, summarize
+    from .eval.tables import ResultsTable
 
     out = Path(out_dir)
     recipe = dataclasses.replace(RECIPES["eflare-mini"], seed=DEMO_SEED)

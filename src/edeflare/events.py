@@ -15,7 +15,10 @@ from typing import Any
 import numba
 import numpy as np
 
+from ._numba import use_fork_safe_threading
 from .errors import EventsError
+
+use_fork_safe_threading()  # before any parallel kernel of the package runs (see _numba)
 
 __all__ = [
     "EVENT_DTYPE",

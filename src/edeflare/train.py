@@ -266,7 +266,7 @@ def _validate(
 
     Events are decoded with the ``keep`` decoder, as ``edeflare deflare`` does by default.
     """
-    from .metrics import segment_metrics
+    from .eval.metrics import segment_metrics
     from .voxel import decode_keep
 
     n = len(dataset)

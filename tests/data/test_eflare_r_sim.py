@@ -19,7 +19,6 @@ import pytest
 from scipy import ndimage
 
 from conftest import random_events, same_events
-from edeflare.benchmark import benchmark
 from edeflare.cli import main
 from edeflare.data.generate import (
     RECIPES,
@@ -30,6 +29,7 @@ from edeflare.data.generate import (
 )
 from edeflare.data.pairs import PairedWindows, list_sequences
 from edeflare.errors import EdeflareError
+from edeflare.eval.benchmark import benchmark
 from edeflare.events import check_events
 from edeflare.io import write_events
 from edeflare.sim.background import NightStreet

@@ -70,8 +70,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the ablation and print its table."""
-    from ..ablate import ABLATIONS, run_ablation
     from ..errors import ParameterError
+    from ..eval.ablate import ABLATIONS, run_ablation
 
     if args.config not in ABLATIONS:
         raise ParameterError(f"unknown ablation {args.config!r}; known: {sorted(ABLATIONS)}")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ..errors import EdeflareError
@@ -67,8 +66,7 @@ def _models(values: list[str]) -> tuple[Path | None, dict[str, Path]]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark, print the tables, optionally write the report files."""
-    from ..benchmark import benchmark
-    from ..io._atomic import atomic_path
+    from ..eval.benchmark import benchmark
 
     rows: dict[str, str] = {m: m for m in args.methods}
     params: dict[str, dict[str, object]] = {}
@@ -86,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         params[name] = {"decoder": args.decoder, "weights": path}
     collector = None
     if args.html is not None:
-        from ..report import FigureCollector, check_report_dir
+        from ..eval.report import FigureCollector, check_report_dir
 
         check_report_dir(args.html)
         collector = FigureCollector(args.samples)
@@ -96,18 +94,10 @@ def run(args: argparse.Namespace) -> int:
     print(markdown, end="")
     if args.report is not None:
         report = args.report.with_suffix(".md")
-        payload = json.loads(table.to_json())
-        payload["benchmark"] = result.to_dict()
-        for path, text in (
-            (report, markdown),
-            (report.with_suffix(".csv"), table.to_csv()),
-            (report.with_suffix(".json"), json.dumps(payload, indent=2, ensure_ascii=False)),
-        ):
-            with atomic_path(path) as tmp:
-                tmp.write_text(text, encoding="utf-8")
+        table.save(report, markdown=markdown, details={"benchmark": result.to_dict()})
         print(f"wrote {report}, {report.with_suffix('.csv')} and {report.with_suffix('.json')}")
     if collector is not None:
-        from ..report import write_report
+        from ..eval.report import write_report
 
         print(f"wrote {write_report(result, args.html, figures=collector.finish())}")
     return 0

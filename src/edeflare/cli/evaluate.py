@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ._common import SIZE_HELP, sensor_size_arg
@@ -50,9 +49,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 def run(args: argparse.Namespace) -> int:
     """Evaluate every method, print the Markdown table, optionally write the report files."""
     from ..errors import EdeflareError
-    from ..evaluate import evaluate
-    from ..io._atomic import atomic_path
-    from ..tables import ResultsTable
+    from ..eval.evaluate import evaluate
+    from ..eval.tables import ResultsTable
 
     names = [name for name, _ in args.pred]
     if len(set(names)) != len(names):
@@ -72,15 +70,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{method}: {summary.n_segments} segments{note}")
     if args.report is not None:
         report = args.report.with_suffix(".md")
-        details = json.loads(table.to_json())
-        details["evaluation"] = result.to_dict()
-        details["window_us"], details["bins"] = window, args.bins
-        for path, text in (
-            (report, markdown),
-            (report.with_suffix(".csv"), table.to_csv()),
-            (report.with_suffix(".json"), json.dumps(details, indent=2, ensure_ascii=False)),
-        ):
-            with atomic_path(path) as tmp:
-                tmp.write_text(text, encoding="utf-8")
+        details = {"evaluation": result.to_dict(), "window_us": window, "bins": args.bins}
+        table.save(report, markdown=markdown, details=details)
         print(f"wrote {report}, {report.with_suffix('.csv')} and {report.with_suffix('.json')}")
     return 0

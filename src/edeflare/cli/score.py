@@ -79,8 +79,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 def run(args: argparse.Namespace) -> int:
     """Score every method, print the table, optionally write it and the JSON (atomically)."""
     from ..errors import EdeflareError
+    from ..eval.score import score_recording
     from ..io._atomic import atomic_path
-    from ..score import score_recording
 
     names = [*args.method, *(name for name, _ in args.pred)]
     if len(set(names)) != len(names):

@@ -414,7 +414,7 @@ def pair_recordings(
     )
 
     split_dir = out / cfg.split
-    from .. import __version__
+    from .._version import __version__
 
     base_attrs = {
         "scene": name,

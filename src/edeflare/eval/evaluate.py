@@ -4,10 +4,10 @@ As in the paper, "all reported scores are computed by averaging the results
 over 20 ms segments": a restored stream and its ground truth are cut into
 the same aligned half-open windows ``[start + k*20ms, start + (k+1)*20ms)``
 (``start`` = the multiple of 20 ms at or below the earlier first event),
-every metric is computed per segment (:func:`edeflare.metrics.segment_metrics`),
+every metric is computed per segment (:func:`edeflare.eval.metrics.segment_metrics`),
 averaged over the segments of a file, and the file means are averaged over
 files (each file weighs the same). NaN values (undefined distances, see
-:mod:`edeflare.metrics`) are left out of the means and counted.
+:mod:`edeflare.eval.metrics`) are left out of the means and counted.
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from .errors import EventFileError
-from .events import SensorSize, empty_events, iter_time_windows, window_start_for
-from .io import list_formats, open_events
+from ..errors import EventFileError
+from ..events import SensorSize, empty_events, iter_time_windows, window_start_for
+from ..io import list_formats, open_events
 from .metrics import METRICS, SegmentMetrics, segment_metrics
 
 __all__ = [
@@ -32,6 +32,7 @@ __all__ = [
     "Summary",
     "combine_summaries",
     "evaluate",
+    "evaluate_events",
     "evaluate_files",
     "evaluate_streams",
     "pair_files",
@@ -71,7 +72,7 @@ def summarize(segments: Iterable[SegmentMetrics]) -> Summary:
 
     Examples
     --------
-    >>> from edeflare.metrics import SegmentMetrics
+    >>> from edeflare.eval.metrics import SegmentMetrics
     >>> a = SegmentMetrics(1.0, 0.5, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
     >>> b = SegmentMetrics(float("nan"), float("nan"), 2.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     >>> s = summarize([a, b])
@@ -158,6 +159,56 @@ def evaluate_streams(
             )
         )
     return out
+
+
+def evaluate_events(
+    events_gt: np.ndarray,
+    events_pred: np.ndarray,
+    sensor_size: SensorSize,
+    *,
+    window_us: int = 20_000,
+    bins: int = 8,
+    start_us: int | None = None,
+    end_us: int | None = None,
+) -> Summary:
+    """Score a prediction against its ground truth: the paper's metrics, averaged over segments.
+
+    :func:`evaluate_streams` (aligned segments of ``window_us``) then
+    :func:`summarize` (means over segments), as ``edeflare evaluate`` does per file.
+
+    Parameters
+    ----------
+    events_gt, events_pred : numpy.ndarray
+        Ground truth first, then the prediction (:data:`~edeflare.events.EVENT_DTYPE`).
+    sensor_size : (width, height)
+    window_us, bins : int
+        Segment length and voxel bins of the metrics.
+    start_us, end_us : int, optional
+        The span to score (default: both streams' windows).
+
+    Returns
+    -------
+    Summary
+        ``.means`` maps each metric to its mean; ``.n_segments`` counts segments.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> gt = make_events([1_000, 30_000], [0, 1], [0, 0], [1, 1])
+    >>> s = evaluate_events(gt, gt, (4, 4))
+    >>> s.n_segments, s.means["chamfer"]
+    (2, 0.0)
+    """
+    segments = evaluate_streams(
+        events_gt,
+        events_pred,
+        sensor_size,
+        window_us=window_us,
+        bins=bins,
+        start_us=start_us,
+        end_us=end_us,
+    )
+    return summarize(m for _, m in segments)
 
 
 def _first_time(source) -> int | None:

@@ -4,7 +4,7 @@ Lens flare spreads a light source's energy into halos and streaks around it;
 de-flaring should remove that spread and keep the source. The score needs no
 ground truth: it is computed on one energy map ``E`` (``(H, W)``, non-negative),
 such as the event counts of a window (:func:`event_energy`) or the magnitude
-``|L|`` of a reconstructed image (:mod:`edeflare.reconstruct`).
+``|L|`` of a reconstructed image (:mod:`edeflare.eval.reconstruct`).
 
 Definition (:func:`flare_score`):
 
@@ -41,8 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from .errors import ParameterError
-from .events import SensorSize, check_events, check_sensor_size
+from ..errors import ParameterError
+from ..events import SensorSize, check_events, check_sensor_size
 
 __all__ = [
     "FlareGeometry",

@@ -5,8 +5,8 @@ see :mod:`edeflare.data.pairs`). For each method (a registered name, with
 parameters) and each sequence, the whole input of the sequence is
 de-flared in memory, cut into the aligned 20 ms segments of the sequence
 span ``[t_start_us, t_end_us)``, and scored against the ground truth with
-:func:`edeflare.metrics.segment_metrics`. Means are over segments, then over
-sequences (as :func:`edeflare.evaluate.evaluate`). Speed is measured per
+:func:`edeflare.eval.metrics.segment_metrics`. Means are over segments, then over
+sequences (as :func:`edeflare.eval.evaluate.evaluate`). Speed is measured per
 method as 20 ms windows per second and real-time factor (processing time
 over stream duration; below 1 is faster than real time), excluding I/O.
 """
@@ -23,10 +23,10 @@ from typing import Any
 
 from tqdm import tqdm
 
-from .data.pairs import check_paired, list_sequences
-from .deflare import Method, create_method
+from ..data.pairs import check_paired, list_sequences
+from ..deflare import Method, create_method
+from ..io.dsec import DsecReader
 from .evaluate import Evaluation, Summary, combine_summaries, evaluate_streams, summarize
-from .io.dsec import DsecReader
 from .tables import ResultsTable
 
 __all__ = ["BenchmarkResult", "MethodSpeed", "benchmark", "read_sequence"]
@@ -134,7 +134,7 @@ def benchmark(
         Called after each method ran on each sequence (untimed), with keyword
         arguments ``row, path, inputs, gt, output, sensor_size, start_us,
         end_us, window_us``, e.g. to keep a few windows for figures
-        (:class:`edeflare.report.FigureCollector`). Rows run in order, all
+        (:class:`edeflare.eval.report.FigureCollector`). Rows run in order, all
         rows of a sequence before the next sequence.
     """
     if isinstance(split, (str, os.PathLike)):

@@ -17,9 +17,13 @@ import csv
 import io
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
+from ..io._atomic import atomic_path
 from .metrics import HIGHER_IS_BETTER, METRICS
 
 __all__ = ["METRIC_LABELS", "ResultsTable"]
@@ -178,6 +182,58 @@ class ResultsTable:
             "improvement_percent": {m: _none(v) for m, v in self.improvement.items()},
         }
         return json.dumps(payload, indent=2, ensure_ascii=False) + "\n"
+
+    def save(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        markdown: str | None = None,
+        details: Mapping[str, Any] | None = None,
+        json_newline: bool = False,
+    ) -> list[Path]:
+        """Write the table as ``STEM.md``, ``STEM.csv`` and ``STEM.json``, each atomically.
+
+        The one writer of results tables (``edeflare evaluate --report``,
+        ``edeflare benchmark --report``, the ablation).
+
+        Parameters
+        ----------
+        path : path-like
+            ``STEM`` or ``STEM.md`` (the suffix is replaced).
+        markdown : str, optional
+            The Markdown file's text (default :meth:`to_markdown`; callers add
+            notes or the speed table).
+        details : mapping, optional
+            Extra keys merged into the JSON (e.g. the full evaluation).
+        json_newline : bool
+            End the JSON file with a newline.
+
+        Returns
+        -------
+        list of Path
+            The files written (``.md``, ``.csv``, ``.json``).
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> t = ResultsTable({"raw": {"chamfer": 2.0}, "efr": {"chamfer": 1.0}})
+        >>> paths = t.save(pathlib.Path(tempfile.mkdtemp()) / "table")
+        >>> [p.name for p in paths]
+        ['table.md', 'table.csv', 'table.json']
+        """
+        stem = Path(path).with_suffix(".md")
+        payload = json.loads(self.to_json())
+        payload.update(details or {})
+        text = json.dumps(payload, indent=2, ensure_ascii=False) + ("\n" if json_newline else "")
+        files = {
+            stem: self.to_markdown() if markdown is None else markdown,
+            stem.with_suffix(".csv"): self.to_csv(),
+            stem.with_suffix(".json"): text,
+        }
+        for target, content in files.items():
+            with atomic_path(target) as tmp:
+                tmp.write_text(content, encoding="utf-8")
+        return list(files)
 
 
 def _num(v: float) -> str:

@@ -33,9 +33,9 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import EventsError
-from .events import SensorSize, check_events, check_sensor_size
-from .voxel import encode_polarity
+from ..errors import EventsError
+from ..events import SensorSize, check_events, check_sensor_size
+from ..voxel import encode_polarity
 
 __all__ = [
     "HIGHER_IS_BETTER",

@@ -40,8 +40,8 @@ from typing import Any
 import numba
 import numpy as np
 
-from .errors import ParameterError
-from .events import SensorSize, check_events, check_sensor_size
+from ..errors import ParameterError
+from ..events import SensorSize, check_events, check_sensor_size
 
 __all__ = ["LeakyIntegrator", "display_scale", "reconstruct", "to_uint8"]
 

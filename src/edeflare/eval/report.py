@@ -5,20 +5,20 @@ CSS, no script, no network) beside the PNG and GIF files it shows and a
 ``results.json`` with every number. The page holds
 
 - the paper's metrics table (raw input unranked, best **bold**, second best
-  *italic*, improvement row; as :mod:`edeflare.tables`) and the speed table;
+  *italic*, improvement row; as :mod:`edeflare.eval.tables`) and the speed table;
 - a qualitative grid like the paper's Figures 4-5: rows are samples, columns
   the input, each method and the ground truth, events drawn red (ON) / blue
   (OFF) over 20 ms windows;
 - one short GIF per sample over consecutive windows of its sequence;
 - the downstream view: images reconstructed from each stream by the leaky
-  integrator of :mod:`edeflare.reconstruct`, side by side, and the
-  no-reference flare score of :mod:`edeflare.flare_score` before (input) and
+  integrator of :mod:`edeflare.eval.reconstruct`, side by side, and the
+  no-reference flare score of :mod:`edeflare.eval.flare_score` before (input) and
   after (each method), per sample and as the median over every window of
   the split.
 
 Samples are chosen deterministically while the benchmark runs
 (:class:`FigureCollector`, the ``on_output`` hook of
-:func:`edeflare.benchmark.benchmark`): each sequence offers its window with
+:func:`edeflare.eval.benchmark.benchmark`): each sequence offers its window with
 the most flare -- the largest ``sum |N_input - N_gt|`` over pixels of the
 per-pixel event counts -- and the sequences with the largest amounts are
 kept (ties: earlier sequence first). Only the kept samples' pictures stay in
@@ -40,16 +40,16 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from . import __version__
+from .._version import __version__
+from ..deflare import Method
+from ..errors import EventFileError, ParameterError
+from ..events import SensorSize
+from ..io._atomic import atomic_path
+from ..viz import event_frame, grid, save_animation, save_image
 from .benchmark import BenchmarkResult, benchmark
-from .deflare import Method
-from .errors import EventFileError, ParameterError
-from .events import SensorSize
 from .flare_score import FlareGeometry, flare_geometry, region_energies
-from .io._atomic import atomic_path
 from .reconstruct import LeakyIntegrator, display_scale, to_uint8
 from .tables import METRIC_LABELS, ResultsTable
-from .viz import event_frame, grid, save_animation, save_image
 
 __all__ = [
     "DEFAULT_METHODS",
@@ -118,7 +118,7 @@ class FigureData:
     samples: list[Sample]
     energies: dict[str, dict[str, np.ndarray]]
     """``{kind: {column: (n_windows, 2) array}}``: the source and flare energies
-    (:func:`edeflare.flare_score.region_energies`) of every window of the split, on
+    (:func:`edeflare.eval.flare_score.region_energies`) of every window of the split, on
     the input's geometry; ``kind`` is ``"reconstruction"`` (``|L|`` at the window's
     end) or ``"events"`` (event counts of the window)."""
     sensor_size: SensorSize | None
@@ -167,15 +167,15 @@ _CHUNK_WINDOWS = 16  # reconstruction frames held at once per stream
 class FigureCollector:
     """Keeps the pictures of the most flared windows while a benchmark runs.
 
-    Pass it as ``on_output`` to :func:`edeflare.benchmark.benchmark`, then
+    Pass it as ``on_output`` to :func:`edeflare.eval.benchmark.benchmark`, then
     call :meth:`finish`. Each sequence offers its window with the most flare
     (``sum |N_input - N_gt|`` of per-pixel event counts); the ``samples``
     sequences with the largest amounts are kept, ties to the earlier one.
     For every window of every sequence and every stream it also computes
-    the flare score (:func:`edeflare.flare_score.flare_score`, geometry
+    the flare score (:func:`edeflare.eval.flare_score.flare_score`, geometry
     located on the input's event counts of the window) of the window's
     event counts and of ``|L|``, the stream's reconstruction at the window's
-    end (:class:`edeflare.reconstruct.LeakyIntegrator`, run over the whole
+    end (:class:`edeflare.eval.reconstruct.LeakyIntegrator`, run over the whole
     sequence a few windows at a time).
 
     Parameters
@@ -185,9 +185,9 @@ class FigureCollector:
     gif_windows : int
         Consecutive windows per GIF (around the sample window).
     cutoff_hz, contrast : float
-        Reconstruction parameters (:func:`edeflare.reconstruct.reconstruct`).
+        Reconstruction parameters (:func:`edeflare.eval.reconstruct.reconstruct`).
     source_radius_px, flare_radius_px : float, optional
-        Flare-score radii (:func:`edeflare.flare_score.flare_geometry`).
+        Flare-score radii (:func:`edeflare.eval.flare_score.flare_geometry`).
 
     Examples
     --------
@@ -463,8 +463,8 @@ def speed_table_html(result: BenchmarkResult) -> str:
 
     Examples
     --------
-    >>> from edeflare.benchmark import MethodSpeed
-    >>> from edeflare.evaluate import Evaluation
+    >>> from edeflare.eval.benchmark import MethodSpeed
+    >>> from edeflare.eval.evaluate import Evaluation
     >>> r = BenchmarkResult(Evaluation(), {"pfd-b": MethodSpeed(2.0, 50, 1_000_000)})
     >>> "<td>pfd-b</td><td>25.00</td><td>2</td>" in speed_table_html(r)
     True
@@ -740,7 +740,7 @@ def write_report(
         missing or half-written file.
     methods, params, seed :
         With a split folder: rows to run (default :data:`DEFAULT_METHODS`),
-        as :func:`edeflare.benchmark.benchmark`.
+        as :func:`edeflare.eval.benchmark.benchmark`.
     samples, gif_windows, cutoff_hz, contrast :
         With a split folder: the :class:`FigureCollector` settings.
     title : str

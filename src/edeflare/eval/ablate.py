@@ -42,16 +42,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..data.generate import RECIPES, Recipe, generate_dataset
+from ..data.pairs import list_sequences
+from ..errors import ParameterError
+from ..io._atomic import atomic_path
+from ..sim.background import SceneConfig
+from ..sim.optics_scene import OpticsSceneConfig
+from ..sim.script import ScriptConfig
+from ..train import TRAIN_PRESETS, TrainConfig, train
 from .benchmark import BenchmarkResult, benchmark
-from .data.generate import RECIPES, Recipe, generate_dataset
-from .data.pairs import list_sequences
-from .errors import ParameterError
-from .io._atomic import atomic_path
-from .sim.background import SceneConfig
-from .sim.optics_scene import OpticsSceneConfig
-from .sim.script import ScriptConfig
 from .tables import ResultsTable
-from .train import TRAIN_PRESETS, TrainConfig, train
 
 __all__ = [
     "ABLATIONS",
@@ -331,16 +331,12 @@ def _write_table(
         f"tested on `{config.test_recipe.name}`. The improvement row is Full's gain "
         "over the best ablated variant.\n\n"
     )
-    payload = json.loads(table.to_json())
-    payload["config"] = config.to_dict()
-    payload["benchmark"] = result.to_dict()
-    for suffix, text in (
-        (".md", note + table.to_markdown()),
-        (".csv", table.to_csv()),
-        (".json", json.dumps(payload, indent=2, ensure_ascii=False) + "\n"),
-    ):
-        with atomic_path(stem.with_suffix(suffix)) as tmp:
-            tmp.write_text(text, encoding="utf-8")
+    table.save(
+        stem,
+        markdown=note + table.to_markdown(),
+        details={"config": config.to_dict(), "benchmark": result.to_dict()},
+        json_newline=True,
+    )
 
 
 def list_ablations() -> Sequence[str]:
