@@ -9,10 +9,11 @@ import pytest
 
 from conftest import random_events
 from edeflare.cli import main
-from edeflare.eval.benchmark import benchmark, read_sequence
+from edeflare.eval.benchmark import benchmark
 from edeflare.eval.evaluate import evaluate_streams, summarize
 from edeflare.events import merge_events
 from edeflare.io.dsec import write_dsec_groups
+from edeflare.io.sequence import read_sequence
 
 SIZE = (32, 24)
 

@@ -10,12 +10,12 @@ import pytest
 
 from conftest import random_events, same_events
 from edeflare.cli import main
-from edeflare.data.pairs import PairedWindows, list_sequences
+from edeflare.data.pairs import PairedWindows
 from edeflare.errors import EventFileError, ParameterError
-from edeflare.eval.benchmark import read_sequence
 from edeflare.eval.evaluate import evaluate
 from edeflare.events import EVENT_DTYPE, center_crop, make_events
 from edeflare.io import read_events, write_events
+from edeflare.io.sequence import list_sequences, read_sequence
 from edeflare.realworld import (
     Circle,
     PairConfig,

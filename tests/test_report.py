@@ -17,10 +17,11 @@ from PIL import Image
 from edeflare.cli import main
 from edeflare.demo import synthetic_flare_scene
 from edeflare.errors import ParameterError
-from edeflare.eval.benchmark import benchmark, read_sequence
+from edeflare.eval.benchmark import benchmark
 from edeflare.eval.report import FigureCollector, write_report
 from edeflare.eval.tables import METRIC_LABELS
 from edeflare.io.dsec import write_dsec_groups
+from edeflare.io.sequence import read_sequence
 from edeflare.viz import OFF_COLOR, ON_COLOR
 
 SIZE = (96, 72)

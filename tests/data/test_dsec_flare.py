@@ -28,10 +28,11 @@ from edeflare.data.dsec_flare import (
     parse_window,
 )
 from edeflare.data.generate import RECIPES, Recipe, generate_dataset
-from edeflare.data.pairs import PairedWindows, list_sequences
+from edeflare.data.pairs import PairedWindows
 from edeflare.errors import EdeflareError, EventFileError
 from edeflare.io import read_events
 from edeflare.io.dsec import DsecReader
+from edeflare.io.sequence import list_sequences
 
 T_OFFSET = 49_599_300_523  # a DSEC-like absolute time of the first event
 SPAN_US = 27_000_000  # long enough for the window around 26 s of 09_c

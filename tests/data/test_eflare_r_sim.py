@@ -27,11 +27,12 @@ from edeflare.data.generate import (
     sequence_path,
     write_sequence,
 )
-from edeflare.data.pairs import PairedWindows, list_sequences
+from edeflare.data.pairs import PairedWindows
 from edeflare.errors import EdeflareError
 from edeflare.eval.benchmark import benchmark
 from edeflare.events import check_events
 from edeflare.io import write_events
+from edeflare.io.sequence import list_sequences
 from edeflare.sim.background import NightStreet
 from edeflare.sim.optics import PSFConfig
 from edeflare.sim.optics_scene import (

@@ -28,11 +28,12 @@ from edeflare.data.generate import (
     list_recipes,
     sequence_path,
 )
-from edeflare.data.pairs import PairedWindows, list_sequences
+from edeflare.data.pairs import PairedWindows
 from edeflare.errors import EdeflareError
 from edeflare.events import check_events, merge_events
 from edeflare.io import write_events
 from edeflare.io.dsec import DsecReader
+from edeflare.io.sequence import list_sequences
 from edeflare.sim.background import SceneConfig
 from edeflare.sim.compose import compose_pair
 from edeflare.sim.script import FlareScript, ScriptConfig

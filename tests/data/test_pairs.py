@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from conftest import random_events
-from edeflare.data.pairs import PairedWindows, list_sequences, sequence_windows
+from edeflare.data.pairs import PairedWindows, sequence_windows
 from edeflare.errors import EventFileError
 from edeflare.io.dsec import write_dsec_groups
+from edeflare.io.sequence import list_sequences
 from edeflare.voxel import encode
 
 

@@ -62,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the configuration, then train."""
-    from ..data.pairs import list_sequences
+    from ..io.sequence import list_sequences
     from ..train import TRAIN_PRESETS, train
 
     base = TRAIN_PRESETS[args.config]

@@ -55,7 +55,6 @@ sequences in flight).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import sys
@@ -68,14 +67,14 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
 from .._version import __version__
 from ..errors import EventFileError, ParameterError
 from ..events import SensorSize
 from ..io._atomic import atomic_path
-from ..io.dsec import write_dsec_groups
+from ..io.sequence import GROUPS, file_sha256, sequence_counts
+from ..io.sequence import write_sequence as write_file
 from ..sim.background import BackgroundSource
 from ..sim.compose import Components
 from ..sim.optics_scene import OpticsScene
@@ -106,8 +105,6 @@ __all__ = [
     "write_sequence",
 ]
 
-GROUPS = ("input", "gt", "flare", "light", "background")
-"""Event groups of a sequence file."""
 _FORMAT = "edeflare-dataset/1"
 
 
@@ -212,26 +209,17 @@ def write_sequence(
     if recipe.kind != "flare":  # no composition variant; say what the file is instead
         del attrs["variant"]
         attrs["kind"] = recipe.kind
-    write_dsec_groups(path, {g: data.streams[g] for g in groups}, data.sensor_size, attrs)
+    write_file(path, {g: data.streams[g] for g in groups}, data.sensor_size, attrs)
     return _entry(path, recipe, data.index)
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _entry(path: Path, recipe: Recipe, index: int) -> dict[str, Any]:
     """The manifest entry of an existing file (checked to belong to ``recipe``)."""
     try:
-        with h5py.File(path, "r") as f:
-            stored = f.attrs.get("recipe_sha256")
-            if isinstance(stored, bytes):
-                stored = stored.decode()
-            counts = {g: int(f[g]["events/t"].shape[0]) for g in GROUPS if g in f}
+        counts, attrs = sequence_counts(path)
+        stored = attrs.get("recipe_sha256")
+        if isinstance(stored, bytes):
+            stored = stored.decode()
     except (OSError, KeyError) as exc:
         raise EventFileError(path, f"is not a readable sequence file ({exc}); delete it") from None
     if stored != recipe.sha256():
@@ -246,7 +234,7 @@ def _entry(path: Path, recipe: Recipe, index: int) -> dict[str, Any]:
         "seed": [recipe.seed, int(index)],
         "events": counts,
         "bytes": path.stat().st_size,
-        "sha256": _sha256(path),
+        "sha256": file_sha256(path),
     }
 
 

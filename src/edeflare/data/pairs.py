@@ -1,16 +1,16 @@
 """Paired voxel windows for training and validation.
 
-A *sequence file* is an HDF5 file written by
-:func:`edeflare.io.dsec.write_dsec_groups` with (at least) the groups
-``input`` (flare-corrupted events) and ``gt`` (ground truth), each in the
-DSEC layout, the root attribute ``sensor_size`` and optionally
-``t_start_us`` / ``t_end_us`` (the sequence span; otherwise the span of its
-events). A dataset folder holds ``train/`` and ``test/`` folders of them.
+A *sequence file* (:mod:`edeflare.io.sequence`, the owner of the layout)
+holds (at least) the groups ``input`` (flare-corrupted events) and ``gt``
+(ground truth), each in the DSEC layout, the root attribute ``sensor_size``
+and ``t_start_us`` / ``t_end_us`` (the sequence span; otherwise the span of
+its events). A dataset folder holds ``train/`` and ``test/`` folders of them.
 
 :class:`PairedWindows` cuts every sequence into aligned windows (default
 20 ms) and returns ``(input, target)`` voxel grids ``(1, bins, H, W)``,
 optionally randomly cropped and flipped. Files without a ``gt`` group (the
-``dsec-flare`` recipe's real windows) are refused by :func:`check_paired`
+``dsec-flare`` recipe's real windows) are refused by
+:func:`~edeflare.io.sequence.check_paired`
 with a message saying what they are for. Augmentations are drawn from a
 generator seeded by ``(seed, epoch, index)``, so a sample is the same on any
 worker, rank or resume.
@@ -23,15 +23,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from ..errors import EventFileError
 from ..events import SensorSize, window_start_for
 from ..io.dsec import DsecReader
+from ..io.sequence import sequence_span
 from ..voxel import encode
 
-__all__ = ["PairedWindows", "WindowRef", "check_paired", "list_sequences", "sequence_windows"]
+__all__ = ["PairedWindows", "WindowRef", "sequence_windows"]
 
 
 @dataclass(frozen=True)
@@ -40,78 +40,6 @@ class WindowRef:
 
     path: Path
     start_us: int
-
-
-def list_sequences(folder: str | os.PathLike[str]) -> list[Path]:
-    """Sequence files (``*.h5``) of a folder, sorted by name."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise EventFileError(folder, "no such dataset folder")
-    files = sorted(p for p in folder.glob("*.h5") if not p.name.startswith("."))
-    if not files:
-        raise EventFileError(folder, "holds no sequence files (*.h5)")
-    return files
-
-
-def check_paired(path: str | os.PathLike[str], groups: Sequence[str] = ("input", "gt")) -> None:
-    """Raise :class:`~edeflare.errors.EventFileError` unless the file holds every event group.
-
-    A sequence without ground truth (e.g. a ``dsec-flare`` window, ``input``
-    only) gets a message that says what it can be used for instead.
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> from edeflare.events import make_events
-    >>> from edeflare.io.dsec import write_dsec_groups
-    >>> p = pathlib.Path(tempfile.mkdtemp()) / "real.h5"
-    >>> write_dsec_groups(p, {"input": make_events([0], [0], [0], [1])}, (2, 2))
-    >>> check_paired(p)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    edeflare.errors.EventFileError: ...real.h5: holds no 'gt' events (no ground truth: ...
-    """
-    path = Path(path)
-    try:
-        with h5py.File(path, "r") as f:
-            missing = [g for g in groups if not isinstance(f.get(f"{g}/events"), h5py.Group)]
-    except OSError as exc:
-        raise EventFileError(path, f"not a readable HDF5 file ({exc})") from None
-    if missing == ["gt"]:
-        raise EventFileError(
-            path,
-            "holds no 'gt' events (no ground truth: a real sequence such as a dsec-flare "
-            "window, for qualitative evaluation); de-flare its input with `edeflare deflare` "
-            "and look at it with `edeflare view` instead",
-        )
-    if missing:
-        raise EventFileError(path, f"holds no {missing} event group(s); not a paired sequence")
-
-
-def _span(path: Path, groups: Sequence[str]) -> tuple[SensorSize, int, int] | None:
-    """Sensor size and ``[start, end)`` of a sequence (None when it holds no events)."""
-    check_paired(path, groups)
-    starts, ends = [], []
-    size: SensorSize | None = None
-    for group in groups:
-        with DsecReader(path, group=f"{group}/events") as reader:
-            size = size or reader.recorded_sensor_size
-            attrs = reader.root_attrs
-            span = reader.time_range()
-        if "t_start_us" in attrs and "t_end_us" in attrs:
-            return size or _no_size(path), int(attrs["t_start_us"]), int(attrs["t_end_us"])
-        if span is not None:
-            starts.append(span[0])
-            ends.append(span[1] + 1)
-    if size is None:
-        _no_size(path)
-    if not starts:
-        return None
-    return size, min(starts), max(ends)  # type: ignore[return-value]
-
-
-def _no_size(path: Path) -> SensorSize:
-    raise EventFileError(path, "records no sensor_size attribute")
 
 
 def sequence_windows(
@@ -128,7 +56,7 @@ def sequence_windows(
     common: SensorSize | None = None
     for p in paths:
         path = Path(p)
-        found = _span(path, groups)
+        found = sequence_span(path, groups)
         if found is None:
             continue
         size, start, end = found

@@ -43,9 +43,9 @@ from pathlib import Path
 from typing import Any
 
 from ..data.generate import RECIPES, Recipe, generate_dataset
-from ..data.pairs import list_sequences
 from ..errors import ParameterError
 from ..io._atomic import atomic_path
+from ..io.sequence import list_sequences
 from ..sim.background import SceneConfig
 from ..sim.optics_scene import OpticsSceneConfig
 from ..sim.script import ScriptConfig

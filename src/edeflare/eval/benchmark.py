@@ -1,7 +1,7 @@
 """The paper's benchmark on a dataset: every method on every test sequence, metrics, speed.
 
 A dataset split is a folder of sequence files (``input`` and ``gt`` groups,
-see :mod:`edeflare.data.pairs`). For each method (a registered name, with
+see :mod:`edeflare.io.sequence`). For each method (a registered name, with
 parameters) and each sequence, the whole input of the sequence is
 de-flared in memory, cut into the aligned 20 ms segments of the sequence
 span ``[t_start_us, t_end_us)``, and scored against the ground truth with
@@ -23,13 +23,12 @@ from typing import Any
 
 from tqdm import tqdm
 
-from ..data.pairs import check_paired, list_sequences
 from ..deflare import Method, create_method
-from ..io.dsec import DsecReader
+from ..io.sequence import list_sequences, read_sequence
 from .evaluate import Evaluation, Summary, combine_summaries, evaluate_streams, summarize
 from .tables import ResultsTable
 
-__all__ = ["BenchmarkResult", "MethodSpeed", "benchmark", "read_sequence"]
+__all__ = ["BenchmarkResult", "MethodSpeed", "benchmark"]
 
 
 @dataclass(frozen=True)
@@ -84,26 +83,6 @@ class BenchmarkResult:
                 for n, s in self.speed.items()
             },
         }
-
-
-def read_sequence(path: str | os.PathLike[str]) -> tuple[Any, Any, tuple[int, int], int, int]:
-    """``(input events, gt events, sensor_size, t_start_us, t_end_us)`` of a sequence file."""
-    check_paired(path)
-    with DsecReader(path, group="input/events") as reader:
-        inp = reader.read()
-        size = reader.recorded_sensor_size
-        attrs = reader.root_attrs
-        span = reader.time_range()
-    with DsecReader(path, group="gt/events") as reader:
-        gt = reader.read()
-        gt_span = reader.time_range()
-    if "t_start_us" in attrs and "t_end_us" in attrs:
-        start, end = int(attrs["t_start_us"]), int(attrs["t_end_us"])
-    else:
-        spans = [s for s in (span, gt_span) if s is not None]
-        start = min(s[0] for s in spans) if spans else 0
-        end = max(s[1] for s in spans) + 1 if spans else 0
-    return inp, gt, size, start, end  # type: ignore[return-value]
 
 
 def benchmark(

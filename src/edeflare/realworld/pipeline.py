@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -20,7 +19,7 @@ from ..errors import EventFileError, ParameterError
 from ..events import SensorSize, center_crop, check_sensor_size, merge_events
 from ..io import EventSource, open_events, write_events
 from ..io._atomic import atomic_path
-from ..io.dsec import write_dsec_groups
+from ..io.sequence import file_sha256, write_sequence
 from ._common import (
     LOW_CONFIDENCE,
     MANIFEST_FORMAT,
@@ -186,14 +185,6 @@ class PairReport:
     manifest_path: Path
     plot_path: Path
     entry: dict[str, Any] = field(repr=False)
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _read_manifest(path: Path) -> dict[str, Any] | None:
@@ -463,7 +454,7 @@ def pair_recordings(
                 for group, events in (("input", inp), ("gt", gt)):
                     write_events(split_dir / group / file_name, events, crop)
                     streams[group] = f"{cfg.split}/{group}/{file_name}"
-            write_dsec_groups(path, {"input": inp, "gt": gt}, crop, attrs)
+            write_sequence(path, {"input": inp, "gt": gt}, crop, attrs)
             removed = ref_w.size - cleaned.size
             counts = {"input": inp.size, "gt": gt.size, "removed": removed, "noise": noise.size}
             for key, value in counts.items():
@@ -477,7 +468,7 @@ def pair_recordings(
                 "t_end_us": int(start + window),
                 "events": {key: int(v) for key, v in counts.items()},
                 "bytes": path.stat().st_size,
-                "sha256": _sha256(path),
+                "sha256": file_sha256(path),
             }
             if streams:
                 entry["streams"] = streams
