@@ -10,7 +10,7 @@ import pytest
 from edeflare.cli import main
 from edeflare.data.generate import generate_sequence
 from edeflare.errors import ParameterError
-from edeflare.eval.ablate import ABLATIONS, VARIANTS, AblationConfig, run_ablation
+from edeflare.eval.ablate import ABLATIONS, VARIANT_ROWS, AblationConfig, run_ablation
 from edeflare.io.dsec import DsecReader
 
 # Two variants, two training sequences, three iterations: the pipeline in a few seconds.
@@ -26,11 +26,17 @@ def quick_run(tmp_path_factory):
 
 
 def test_configurations_train_equal_budgets_on_every_variant():
-    assert list(VARIANTS) == ["simple", "simple+random", "physical+random", "no-light", "physical"]
+    assert list(VARIANT_ROWS) == [
+        "simple",
+        "simple+random",
+        "physical+random",
+        "no-light",
+        "physical",
+    ]
     for cfg in ABLATIONS.values():
-        assert cfg.variants == tuple(VARIANTS)
+        assert cfg.variants == tuple(VARIANT_ROWS)
         recipes = [cfg.recipe_for(v) for v in cfg.variants]
-        assert [r.variant for r in recipes] == list(VARIANTS)
+        assert [r.variant for r in recipes] == list(VARIANT_ROWS)
         # everything but the composition (and the name) is shared
         for r in recipes:
             assert (r.seed, r.sequences, r.sensor_size, r.duration_us) == (
@@ -133,6 +139,6 @@ def test_cli_small_ablation_runs_every_variant(tmp_path, capsys):
     out = tmp_path / "abl"
     assert main(["ablate", str(out), "--config", "small"]) == 0
     text = capsys.readouterr().out
-    for label in VARIANTS.values():
+    for label in VARIANT_ROWS.values():
         assert f"| {label} |" in text
     assert json.loads((out / "table.json").read_text())["raw"] == "raw"

@@ -32,19 +32,20 @@ parameters; :func:`create_method` rejects any other name).
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import os
 import sys
 import types
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from typing import Any
+from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 from tqdm import tqdm
 
-from .baselines.efr import EFRFilter, efr_bias, efr_delays
-from .baselines.pfd import PFDFilter
+from ._registry import Registry, cli_option
+from .baselines.efr import EFRFilter, EFRParams, efr_bias, efr_delays
+from .baselines.pfd import PFDFilter, PFDParams
 from .errors import ParameterError
 from .events import (
     EVENT_DTYPE,
@@ -56,9 +57,12 @@ from .events import (
 from .voxel import decode, encode
 
 __all__ = [
+    "METHODS",
     "DeflareStats",
     "Method",
+    "ModelParams",
     "Streamer",
+    "VoxelParams",
     "create_method",
     "deflare",
     "deflare_file",
@@ -67,7 +71,8 @@ __all__ = [
 ]
 
 MethodFactory = Callable[..., "Method"]
-_REGISTRY: dict[str, MethodFactory] = {}
+METHODS: Registry[MethodFactory] = Registry("method")
+"""The registered methods: name -> factory (with its parameter dataclass, where declared)."""
 _EMPTY = np.zeros(0, dtype=EVENT_DTYPE)
 # Held outputs are re-sorted once at least this many (and as many as already held) arrived.
 _REORDER_BATCH = 1 << 16
@@ -157,11 +162,15 @@ class Method:
         return out
 
 
-def register_method(name: str, factory: MethodFactory | None = None) -> Any:
+def register_method(
+    name: str, factory: MethodFactory | None = None, *, params: type | None = None
+) -> Any:
     """Register a method factory under ``name`` (usable as a decorator).
 
-    The factory's keyword parameters are the method's parameters; it returns
-    a :class:`Method`. Registering a name twice is an error.
+    The factory returns a :class:`Method`. Its parameters are the fields of
+    ``params`` (a frozen dataclass declared next to the algorithm, whose
+    ``cli`` metadata also makes the command-line options), else its keyword
+    parameters. Registering a name twice is an error.
 
     Examples
     --------
@@ -176,23 +185,20 @@ def register_method(name: str, factory: MethodFactory | None = None) -> Any:
     edeflare.errors.ParameterError: method 'doc-identity' is already registered
     >>> _unregister("doc-identity")
     """
-    if not isinstance(name, str) or not name:
-        raise ParameterError(f"a method name must be a non-empty string, got {name!r}")
 
     def decorate(fn: MethodFactory) -> MethodFactory:
-        if name in _REGISTRY:
-            raise ParameterError(f"method {name!r} is already registered")
         if not callable(fn):
             raise ParameterError(f"the factory of method {name!r} must be callable")
-        _REGISTRY[name] = fn
-        return fn
+        return METHODS.register(name, fn, params=params)
 
+    if not isinstance(name, str) or not name:
+        raise ParameterError(f"a method name must be a non-empty string, got {name!r}")
     return decorate if factory is None else decorate(factory)
 
 
 def _unregister(name: str) -> None:
     """Remove a registered method (for tests and examples)."""
-    _REGISTRY.pop(name, None)
+    METHODS.unregister(name)
 
 
 def list_methods() -> list[str]:
@@ -203,11 +209,7 @@ def list_methods() -> list[str]:
     >>> "efr" in list_methods()
     True
     """
-    return sorted(_REGISTRY)
-
-
-def _parameters(name: str) -> dict[str, inspect.Parameter]:
-    return dict(inspect.signature(_REGISTRY[name]).parameters)
+    return METHODS.names()
 
 
 def create_method(name: str, **params: Any) -> Method:
@@ -228,19 +230,7 @@ def create_method(name: str, **params: Any) -> Method:
     ...
     edeflare.errors.ParameterError: method 'efr' has no parameter 'frequency'; valid: ...
     """
-    if name not in _REGISTRY:
-        raise ParameterError(
-            f"unknown method {name!r}; registered methods: {', '.join(list_methods())}"
-        )
-    valid = _parameters(name)
-    unknown = [k for k in params if k not in valid]
-    if unknown:
-        plural = "s" if len(unknown) > 1 else ""
-        raise ParameterError(
-            f"method {name!r} has no parameter{plural} {', '.join(map(repr, unknown))}; "
-            f"valid: {', '.join(valid) if valid else '(none)'}"
-        )
-    method = _REGISTRY[name](**params)
+    method = METHODS.create(name, **params)
     if not isinstance(method, Method):
         raise ParameterError(f"the factory of method {name!r} returned {type(method).__name__}")
     method.name = name
@@ -255,11 +245,12 @@ def method_parameters(name: str) -> dict[str, Any]:
     >>> method_parameters("voxel")
     {'window_us': 20000, 'bins': 8}
     """
-    if name not in _REGISTRY:
-        raise ParameterError(
-            f"unknown method {name!r}; registered methods: {', '.join(list_methods())}"
-        )
-    return {k: p.default for k, p in _parameters(name).items()}
+    return METHODS.parameters(name)
+
+
+def _values(params: Any) -> dict[str, Any]:
+    """The fields of a parameter dataclass as a dict (arrays not copied)."""
+    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params)}
 
 
 def deflare(
@@ -365,10 +356,62 @@ class _WindowStreamer(Streamer):
         return self._windows(None)
 
 
+@dataclasses.dataclass(frozen=True)
+class VoxelParams:
+    """The ``voxel`` method's parameters (paper: 20 ms, 8 bins)."""
+
+    cli_title: ClassVar[str] = "voxel (paper: 20 ms, 8 bins)"
+
+    window_us: int = dataclasses.field(
+        default=20_000,
+        metadata=cli_option(
+            "--voxel-window-ms", "voxel window", metavar="MS", unit="ms", type=float
+        ),
+    )
+    bins: int = dataclasses.field(
+        default=8, metadata=cli_option("--voxel-bins", "temporal bins", metavar="N")
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelParams:
+    """The ``model`` method's parameters (see :class:`ModelMethod`)."""
+
+    cli_title: ClassVar[str] = "model (E-DeflareNet)"
+
+    weights: str | os.PathLike[str] | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--model",
+            "weights (.safetensors)",
+            metavar="PATH",
+            type=Path,
+            convert=str,
+            default_text="the bundled model",
+        ),
+    )
+    decoder: str = dataclasses.field(
+        default="keep",
+        metadata=cli_option(
+            "--decoder",
+            "keep: edit the input's own events; paper: resample the grid",
+            choices=("keep", "paper"),
+        ),
+    )
+    device: str = dataclasses.field(
+        default="auto", metadata=cli_option("--device", "auto, cpu, cuda, cuda:1")
+    )
+    batch_windows: int = dataclasses.field(
+        default=4,
+        metadata=cli_option("--batch-windows", "20 ms windows per network call", metavar="N"),
+    )
+    seed: int = 0
+
+
 class VoxelMethod(Method):
     """Voxel Transform: the E-DeflareNet codec with the network bypassed (``f = 0``)."""
 
-    def __init__(self, window_us: int = 20_000, bins: int = 8) -> None:
+    def __init__(self, window_us: int, bins: int) -> None:
         for label, v, lo in (("window_us", window_us, 1), ("bins", bins, 1)):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
                 raise ParameterError(f"{label} must be a positive int, got {v!r}")
@@ -407,14 +450,14 @@ class EFRMethod(Method):
 
     def __init__(
         self,
-        frequency_hz: float = 50.0,
-        rho1: float = 0.6,
-        merge_us: int = 10_000,
-        threshold: float = 0.7,
-        bias: np.ndarray | None = None,
-        min_bias_events: int = 20,
-        keep_warmup: bool | None = None,
-        shift_back: bool = False,
+        frequency_hz: float,
+        rho1: float,
+        merge_us: int,
+        threshold: float,
+        bias: np.ndarray | None,
+        min_bias_events: int,
+        keep_warmup: bool | None,
+        shift_back: bool,
     ) -> None:
         super().__init__(
             frequency_hz=frequency_hz,
@@ -498,11 +541,11 @@ class ModelMethod(Method):
 
     def __init__(
         self,
-        weights: str | os.PathLike[str] | None = None,
-        decoder: str = "keep",
-        device: str = "auto",
-        batch_windows: int = 4,
-        seed: int = 0,
+        weights: str | os.PathLike[str] | None,
+        decoder: str,
+        device: str,
+        batch_windows: int,
+        seed: int,
     ) -> None:
         from .models.infer import DECODERS, bundled_weights
         from .models.weights import read_card
@@ -547,15 +590,9 @@ class ModelMethod(Method):
         return _WindowStreamer(deflarer.window_us, transform)
 
 
-@register_method("model")
-def _make_model(
-    weights: str | os.PathLike[str] | None = None,
-    decoder: str = "keep",
-    device: str = "auto",
-    batch_windows: int = 4,
-    seed: int = 0,
-) -> Method:
-    return ModelMethod(weights, decoder, device, batch_windows, seed)
+@register_method("model", params=ModelParams)
+def _make_model(**params: Any) -> Method:
+    return ModelMethod(**_values(ModelParams(**params)))
 
 
 @register_method("raw")
@@ -563,61 +600,26 @@ def _make_raw() -> Method:
     return RawMethod()
 
 
-@register_method("voxel")
-def _make_voxel(window_us: int = 20_000, bins: int = 8) -> Method:
-    return VoxelMethod(window_us, bins)
-
-
-@register_method("efr")
-def _make_efr(
-    frequency_hz: float = 50.0,
-    rho1: float = 0.6,
-    merge_us: int = 10_000,
-    threshold: float = 0.7,
-    bias: np.ndarray | None = None,
-    min_bias_events: int = 20,
-    keep_warmup: bool | None = None,
-    shift_back: bool = False,
-) -> Method:
-    return EFRMethod(
-        frequency_hz,
-        rho1,
-        merge_us,
-        threshold,
-        bias,
-        min_bias_events,
-        keep_warmup,
-        shift_back,
-    )
+@register_method("efr", params=EFRParams)
+def _make_efr(**params: Any) -> Method:
+    return EFRMethod(**_values(EFRParams(**params)))
 
 
 def _pfd_factory(score: str) -> MethodFactory:
-    def make(
-        stage1_window_us: int = 20_000,
-        window_us: int = 20_000,
-        min_support: int = 1,
-        min_active: int = 3,
-        fifo_size: int = 5,
-        flip_against_previous: bool = False,
-        real_valued_score: bool = False,
-    ) -> Method:
-        return PFDMethod(
-            score,
-            stage1_window_us=stage1_window_us,
-            window_us=window_us,
-            min_support=min_support,
-            min_active=min_active,
-            fifo_size=fifo_size,
-            flip_against_previous=flip_against_previous,
-            real_valued_score=real_valued_score,
-        )
+    def make(**params: Any) -> Method:
+        return PFDMethod(score, **_values(PFDParams(**params)))
 
     make.__name__ = f"_make_pfd_{score.lower()}"
     return make
 
 
-register_method("pfd-a", _pfd_factory("A"))
-register_method("pfd-b", _pfd_factory("B"))
+register_method("pfd-a", _pfd_factory("A"), params=PFDParams)
+register_method("pfd-b", _pfd_factory("B"), params=PFDParams)
+
+
+@register_method("voxel", params=VoxelParams)
+def _make_voxel(**params: Any) -> Method:
+    return VoxelMethod(**_values(VoxelParams(**params)))
 
 
 class _DvStreamer(Streamer):

@@ -36,6 +36,7 @@ import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
 from tqdm import tqdm
 
+from ._registry import Registry
 from .data.pairs import PairedWindows
 from .errors import EdeflareError
 from .io._atomic import atomic_path
@@ -116,9 +117,11 @@ _FREE_ON_RESUME = frozenset(
     }
 )
 
-TRAIN_PRESETS: dict[str, TrainConfig] = {
-    "paper": TrainConfig(),
-    "cpu": TrainConfig(
+TRAIN_PRESETS: Registry[TrainConfig] = Registry("training preset")
+TRAIN_PRESETS.register("paper", TrainConfig())
+TRAIN_PRESETS.register(
+    "cpu",
+    TrainConfig(
         preset="unet2d.lite",
         iterations=3000,
         batch_size=8,
@@ -129,7 +132,7 @@ TRAIN_PRESETS: dict[str, TrainConfig] = {
         val_every=500,
         checkpoint_every=250,
     ),
-}
+)
 """``paper``: Appendix D's configuration; ``cpu``: a light preset for 2-core machines."""
 
 

@@ -57,17 +57,21 @@ Removal", ICRA 2022. Original program: github.com/ziweiWWANG/EFR @ a0e0189.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Iterable
-from typing import Any
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
 
 import numba
 import numpy as np
 
-from ..errors import ParameterError
+from .._registry import cli_option
+from ..errors import EventFileError, ParameterError
 from ..events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size, sort_events
 from ._compiled import prefetch as _prefetch
 
-__all__ = ["EFRFilter", "efr", "efr_bias", "efr_delays"]
+__all__ = ["EFRFilter", "EFRParams", "efr", "efr_bias", "efr_delays", "load_bias_map"]
 
 _TIME_RESOLUTION_US = 1_000_000
 _NO_TIME = np.iinfo(np.int64).max
@@ -76,6 +80,82 @@ _BASE, _CAP, _HEAD, _SIZE = 0, 1, 2, 3
 _Q1, _Q2, _Q3, _Q4 = 0, 1, 2, 3
 _FIRST_BLOCK = 4
 _POOL_LIMIT = np.iinfo(np.int32).max
+
+
+def load_bias_map(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read an EFR bias map ``(H, W)`` saved with ``numpy.save`` (``.npy``)."""
+    try:
+        bias = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise EventFileError(Path(path), f"cannot read a bias map ({exc})") from None
+    if not isinstance(bias, np.ndarray) or bias.ndim != 2:
+        raise EventFileError(Path(path), "a bias map must be a 2-D (H, W) array in a .npy file")
+    return bias
+
+
+@dataclass(frozen=True)
+class EFRParams:
+    """EFR's parameters, declared once: :class:`EFRFilter`, :func:`efr`, the ``efr``
+    method and the command line's ``--efr-*`` options take them from here.
+
+    See :class:`EFRFilter` for their meaning (paper: 50 Hz, rho1 0.6, 10 ms, 0.7).
+
+    Examples
+    --------
+    >>> EFRParams().frequency_hz, EFRParams(rho1=0.5).rho1
+    (50.0, 0.5)
+    """
+
+    cli_title: ClassVar[str] = "efr (paper: 50 Hz, rho1 0.6)"
+
+    frequency_hz: float = field(
+        default=50.0, metadata=cli_option("--efr-frequency", "base frequency", metavar="HZ")
+    )
+    rho1: float = field(
+        default=0.6, metadata=cli_option("--rho1", "feedback gain of the first comb")
+    )
+    merge_us: int = field(
+        default=10_000,
+        metadata=cli_option("--efr-merge-ms", "merge window", metavar="MS", unit="ms", type=float),
+    )
+    threshold: float = field(
+        default=0.7, metadata=cli_option("--efr-threshold", "sampler threshold", metavar="X")
+    )
+    bias: np.ndarray | None = field(
+        default=None,
+        compare=False,
+        metadata=cli_option(
+            "--efr-bias",
+            "per-pixel bias map (H, W); default: computed over the input (a first pass)",
+            metavar="FILE.npy",
+            type=Path,
+            convert=load_bias_map,
+        ),
+    )
+    min_bias_events: int = field(
+        default=20,
+        metadata=cli_option("--efr-min-bias-events", "events for a pixel's bias", metavar="N"),
+    )
+    keep_warmup: bool | None = field(
+        default=None,
+        metadata=cli_option(
+            "--efr-warmup",
+            "keep the input events of the first d1+d2 unchanged",
+            kind="bool",
+            default_text="yes, unless shifted back",
+        ),
+    )
+    shift_back: bool = field(
+        default=False,
+        metadata=cli_option(
+            "--efr-shift-back",
+            "move outputs back by the filter delay (then the warm-up is not kept)",
+            kind="flag",
+        ),
+    )
+
+
+_D = EFRParams()
 
 
 def efr_delays(frequency_hz: float) -> tuple[int, float]:
@@ -105,7 +185,7 @@ def efr_delays(frequency_hz: float) -> tuple[int, float]:
 def efr_bias(
     events: np.ndarray | Iterable[np.ndarray],
     sensor_size: SensorSize,
-    min_events: int = 20,
+    min_events: int = _D.min_bias_events,
 ) -> np.ndarray:
     """Per-pixel polarity bias ``(N_on - N_off) / (N_on + N_off)``, as EFR computes it.
 
@@ -619,14 +699,14 @@ class EFRFilter:
     def __init__(
         self,
         sensor_size: SensorSize,
-        frequency_hz: float = 50.0,
-        rho1: float = 0.6,
-        merge_us: int = 10_000,
-        threshold: float = 0.7,
+        frequency_hz: float = _D.frequency_hz,
+        rho1: float = _D.rho1,
+        merge_us: int = _D.merge_us,
+        threshold: float = _D.threshold,
         *,
-        bias: np.ndarray | None = None,
-        keep_warmup: bool | None = None,
-        shift_back: bool = False,
+        bias: np.ndarray | None = _D.bias,
+        keep_warmup: bool | None = _D.keep_warmup,
+        shift_back: bool = _D.shift_back,
     ) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
         width, height = self.sensor_size
@@ -822,15 +902,15 @@ class EFRFilter:
 def efr(
     events: np.ndarray,
     sensor_size: SensorSize,
-    frequency_hz: float = 50.0,
-    rho1: float = 0.6,
-    merge_us: int = 10_000,
-    threshold: float = 0.7,
+    frequency_hz: float = _D.frequency_hz,
+    rho1: float = _D.rho1,
+    merge_us: int = _D.merge_us,
+    threshold: float = _D.threshold,
     *,
-    bias: np.ndarray | None = None,
-    min_bias_events: int = 20,
-    keep_warmup: bool | None = None,
-    shift_back: bool = False,
+    bias: np.ndarray | None = _D.bias,
+    min_bias_events: int = _D.min_bias_events,
+    keep_warmup: bool | None = _D.keep_warmup,
+    shift_back: bool = _D.shift_back,
 ) -> np.ndarray:
     """Remove flicker with EFR (one pass over the whole stream), sorted by time.
 

@@ -36,14 +36,18 @@ C. Shi et al., "Polarity-Focused Denoising for Event Cameras", IEEE TCSVT
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from typing import ClassVar
+
 import numba
 import numpy as np
 
+from .._registry import cli_option
 from ..errors import ParameterError
 from ..events import SensorSize, check_events, check_sensor_size
 from ._compiled import prefetch as _prefetch
 
-__all__ = ["PFDFilter", "pfd", "pfd_mask"]
+__all__ = ["PFDFilter", "PFDParams", "pfd", "pfd_mask"]
 
 # An unused flip slot: far enough in the past never to count.
 _NEVER = -(1 << 62)
@@ -156,6 +160,69 @@ def _pfd_run(
             keep[i] = np.int64(score) <= 1  # the original's int truncation
 
 
+@dataclass(frozen=True)
+class PFDParams:
+    """PFD's parameters, declared once: :class:`PFDFilter`, :func:`pfd`, :func:`pfd_mask`,
+    the ``pfd-a`` / ``pfd-b`` methods and the command line's ``--pfd-*`` options take
+    them from here (``score`` is the method's: A or B).
+
+    See :class:`PFDFilter` for their meaning (paper: 20 ms windows, 3 neighbours).
+
+    Examples
+    --------
+    >>> PFDParams().fifo_size
+    5
+    """
+
+    cli_title: ClassVar[str] = "pfd-a / pfd-b (paper: 20 ms windows, 3 neighbours)"
+
+    stage1_window_us: int = field(
+        default=20_000,
+        metadata=cli_option(
+            "--pfd-stage1-window-ms", "stage-1 window", metavar="MS", unit="ms", type=float
+        ),
+    )
+    window_us: int = field(
+        default=20_000,
+        metadata=cli_option(
+            "--pfd-window-ms",
+            "stage-2 window, and stage-1 unless --pfd-stage1-window-ms",
+            metavar="MS",
+            unit="ms",
+            type=float,
+        ),
+    )
+    min_support: int = field(
+        default=1, metadata=cli_option("--pfd-min-support", "stage-1 'var'", metavar="N")
+    )
+    min_active: int = field(
+        default=3,
+        metadata=cli_option("--pfd-min-active", "stage-2 'neibor': keep needs more", metavar="N"),
+    )
+    fifo_size: int = field(
+        default=5, metadata=cli_option("--pfd-fifo-size", "flip times kept per pixel", metavar="N")
+    )
+    flip_against_previous: bool = field(
+        default=False,
+        metadata=cli_option(
+            "--pfd-flip-against-previous",
+            "count flips against the previous event, not the pixel's first (not the original)",
+            kind="flag",
+        ),
+    )
+    real_valued_score: bool = field(
+        default=False,
+        metadata=cli_option(
+            "--pfd-real-score",
+            "test the real-valued score <= 1, not the original's truncated int",
+            kind="flag",
+        ),
+    )
+
+
+_D = PFDParams()
+
+
 def _check_int(name: str, value: object, lo: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
         raise ParameterError(f"{name} must be an int >= {lo}, got {value!r}")
@@ -198,15 +265,15 @@ class PFDFilter:
     def __init__(
         self,
         sensor_size: SensorSize,
-        stage1_window_us: int = 20_000,
-        window_us: int = 20_000,
-        min_support: int = 1,
-        min_active: int = 3,
+        stage1_window_us: int = _D.stage1_window_us,
+        window_us: int = _D.window_us,
+        min_support: int = _D.min_support,
+        min_active: int = _D.min_active,
         *,
         score: str = "A",
-        fifo_size: int = 5,
-        flip_against_previous: bool = False,
-        real_valued_score: bool = False,
+        fifo_size: int = _D.fifo_size,
+        flip_against_previous: bool = _D.flip_against_previous,
+        real_valued_score: bool = _D.real_valued_score,
     ) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
         width, height = self.sensor_size
@@ -309,15 +376,15 @@ class PFDFilter:
 def pfd_mask(
     events: np.ndarray,
     sensor_size: SensorSize,
-    stage1_window_us: int = 20_000,
-    window_us: int = 20_000,
-    min_support: int = 1,
-    min_active: int = 3,
+    stage1_window_us: int = _D.stage1_window_us,
+    window_us: int = _D.window_us,
+    min_support: int = _D.min_support,
+    min_active: int = _D.min_active,
     *,
     score: str = "A",
-    fifo_size: int = 5,
-    flip_against_previous: bool = False,
-    real_valued_score: bool = False,
+    fifo_size: int = _D.fifo_size,
+    flip_against_previous: bool = _D.flip_against_previous,
+    real_valued_score: bool = _D.real_valued_score,
 ) -> np.ndarray:
     """The keep mask of PFD over a whole stream (one pass). See :class:`PFDFilter`.
 
@@ -359,15 +426,15 @@ def pfd_mask(
 def pfd(
     events: np.ndarray,
     sensor_size: SensorSize,
-    stage1_window_us: int = 20_000,
-    window_us: int = 20_000,
-    min_support: int = 1,
-    min_active: int = 3,
+    stage1_window_us: int = _D.stage1_window_us,
+    window_us: int = _D.window_us,
+    min_support: int = _D.min_support,
+    min_active: int = _D.min_active,
     *,
     score: str = "A",
-    fifo_size: int = 5,
-    flip_against_previous: bool = False,
-    real_valued_score: bool = False,
+    fifo_size: int = _D.fifo_size,
+    flip_against_previous: bool = _D.flip_against_previous,
+    real_valued_score: bool = _D.real_valued_score,
 ) -> np.ndarray:
     """Denoise with PFD (one pass): the events it keeps, in order. See :class:`PFDFilter`.
 

@@ -3,11 +3,21 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-from ..errors import EventsError
+from .._registry import param_fields
+from ..errors import EventsError, ParameterError
 from ..events import SensorSize, parse_sensor_size
 
-__all__ = ["GROUP_HELP", "SIZE_HELP", "crop_spec", "ms_to_us", "sensor_size_arg"]
+__all__ = [
+    "GROUP_HELP",
+    "SIZE_HELP",
+    "add_param_options",
+    "crop_spec",
+    "ms_to_us",
+    "param_options",
+    "sensor_size_arg",
+]
 
 SIZE_HELP = "sensor size WxH, for files that record none (else max+1, with a warning)"
 GROUP_HELP = (
@@ -37,3 +47,50 @@ def crop_spec(text: str) -> tuple[int, int, int, int] | SensorSize:
 def ms_to_us(ms: float | None) -> int | None:
     """Milliseconds (or None) to integer microseconds."""
     return None if ms is None else round(ms * 1000)
+
+
+def add_param_options(parser: argparse.ArgumentParser, params: type) -> None:
+    """Add a parameter dataclass's options (fields with ``cli`` metadata) as a group.
+
+    The options default to ``SUPPRESS``: absent unless given, so a misplaced one
+    is caught (:func:`param_options`). Help texts end with the default.
+    """
+    group = parser.add_argument_group(getattr(params, "cli_title", params.__name__))
+    for f, opt in param_fields(params):
+        if opt is None:
+            continue
+        kwargs: dict[str, Any] = {"default": argparse.SUPPRESS, "help": opt.help_text(f.default)}
+        if opt.kind == "flag":
+            kwargs["action"] = "store_true"
+        elif opt.kind == "bool":
+            kwargs["action"] = argparse.BooleanOptionalAction
+        else:
+            if opt.choices is not None:
+                kwargs["choices"] = list(opt.choices)
+            else:
+                kwargs["type"] = opt.type or type(f.default)
+            if opt.metavar is not None:
+                kwargs["metavar"] = opt.metavar
+        group.add_argument(opt.flag, **kwargs)
+
+
+def param_options(
+    args: argparse.Namespace, params: type, method: str, applies_to: tuple[str, ...]
+) -> dict[str, Any]:
+    """The parameters of ``params`` given on the command line (only those given).
+
+    An option given for a ``method`` it does not apply to is an error naming
+    the methods it applies to.
+    """
+    out: dict[str, Any] = {}
+    for f, opt in param_fields(params):
+        if opt is None:
+            continue
+        value = getattr(args, opt.flag[2:].replace("-", "_"), None)
+        if value is None:
+            continue
+        if method not in applies_to:
+            flag = opt.flag if value is not False else "--no-" + opt.flag[2:]
+            raise ParameterError(f"{flag} applies to --method {' or '.join(applies_to)}")
+        out[f.name] = opt.to_param(value)
+    return out

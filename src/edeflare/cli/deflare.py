@@ -7,10 +7,14 @@ import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..errors import EdeflareError, ParameterError
-from ._common import GROUP_HELP, SIZE_HELP, sensor_size_arg
+from ..errors import EdeflareError
+from ._common import (
+    GROUP_HELP,
+    SIZE_HELP,
+    add_param_options,
+    param_options,
+    sensor_size_arg,
+)
 
 HELP = (
     "De-flare an event file, streaming: with the bundled E-DeflareNet (default), "
@@ -19,34 +23,16 @@ HELP = (
 )
 
 
-def _ms(value: float) -> int:
-    return round(value * 1000)
+def _param_groups() -> list[tuple[type, tuple[str, ...]]]:
+    """Each declared parameter dataclass and the methods using it, in registration order."""
+    from ..deflare import METHODS
 
-
-# option dest -> (methods it applies to, parameter name, converter from the parsed value).
-# These options default to SUPPRESS: absent unless given, so a misplaced one is caught.
-_OPTIONS: dict[str, tuple[tuple[str, ...], str, Any]] = {
-    "efr_frequency": (("efr",), "frequency_hz", float),
-    "rho1": (("efr",), "rho1", float),
-    "efr_merge_ms": (("efr",), "merge_us", _ms),
-    "efr_threshold": (("efr",), "threshold", float),
-    "efr_min_bias_events": (("efr",), "min_bias_events", int),
-    "efr_shift_back": (("efr",), "shift_back", bool),
-    "efr_warmup": (("efr",), "keep_warmup", bool),
-    "pfd_window_ms": (("pfd-a", "pfd-b"), "window_us", _ms),
-    "pfd_stage1_window_ms": (("pfd-a", "pfd-b"), "stage1_window_us", _ms),
-    "pfd_min_support": (("pfd-a", "pfd-b"), "min_support", int),
-    "pfd_min_active": (("pfd-a", "pfd-b"), "min_active", int),
-    "pfd_fifo_size": (("pfd-a", "pfd-b"), "fifo_size", int),
-    "pfd_flip_against_previous": (("pfd-a", "pfd-b"), "flip_against_previous", bool),
-    "pfd_real_score": (("pfd-a", "pfd-b"), "real_valued_score", bool),
-    "model": (("model",), "weights", str),
-    "decoder": (("model",), "decoder", str),
-    "device": (("model",), "device", str),
-    "batch_windows": (("model",), "batch_windows", int),
-    "voxel_window_ms": (("voxel",), "window_us", _ms),
-    "voxel_bins": (("voxel",), "bins", int),
-}
+    groups: dict[type, list[str]] = {}
+    for name in METHODS:
+        params = METHODS.params(name)
+        if params is not None:
+            groups.setdefault(params, []).append(name)
+    return [(params, tuple(names)) for params, names in groups.items()]
 
 
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
@@ -74,177 +60,19 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         choices=["evt2", "evt3"],
         help="encoding of .raw outputs (EVT 3.0 output must span under 16.8 s)",
     )
-    g = p.add_argument_group("model (E-DeflareNet)")
-    g.add_argument(
-        "--model",
-        type=Path,
-        default=argparse.SUPPRESS,
-        metavar="PATH",
-        help="weights (.safetensors) [the bundled model]",
-    )
-    g.add_argument(
-        "--decoder",
-        choices=["keep", "paper"],
-        default=argparse.SUPPRESS,
-        help="keep: edit the input's own events; paper: resample the grid [keep]",
-    )
-    g.add_argument("--device", default=argparse.SUPPRESS, help="auto, cpu, cuda, cuda:1 [auto]")
-    g.add_argument(
-        "--batch-windows",
-        type=int,
-        default=argparse.SUPPRESS,
-        metavar="N",
-        help="20 ms windows per network call [4]",
-    )
-    g = p.add_argument_group("efr (paper: 50 Hz, rho1 0.6)")
-    g.add_argument(
-        "--efr-frequency",
-        default=argparse.SUPPRESS,
-        type=float,
-        metavar="HZ",
-        help="base frequency [50]",
-    )
-    g.add_argument(
-        "--rho1",
-        default=argparse.SUPPRESS,
-        type=float,
-        help="feedback gain of the first comb [0.6]",
-    )
-    g.add_argument(
-        "--efr-merge-ms",
-        default=argparse.SUPPRESS,
-        type=float,
-        metavar="MS",
-        help="merge window [10]",
-    )
-    g.add_argument(
-        "--efr-threshold",
-        default=argparse.SUPPRESS,
-        type=float,
-        metavar="X",
-        help="sampler threshold [0.7]",
-    )
-    g.add_argument(
-        "--efr-bias",
-        type=Path,
-        default=argparse.SUPPRESS,
-        metavar="FILE.npy",
-        help="per-pixel bias map (H, W); default: computed over the input (a first pass)",
-    )
-    g.add_argument(
-        "--efr-min-bias-events",
-        type=int,
-        default=argparse.SUPPRESS,
-        metavar="N",
-        help="events for a pixel's bias [20]",
-    )
-    g.add_argument(
-        "--efr-shift-back",
-        action="store_true",
-        default=argparse.SUPPRESS,
-        help="move outputs back by the filter delay (then the warm-up is not kept)",
-    )
-    g.add_argument(
-        "--efr-warmup",
-        action=argparse.BooleanOptionalAction,
-        default=argparse.SUPPRESS,
-        help="keep the input events of the first d1+d2 unchanged [yes, unless shifted back]",
-    )
-    g = p.add_argument_group("pfd-a / pfd-b (paper: 20 ms windows, 3 neighbours)")
-    g.add_argument(
-        "--pfd-window-ms",
-        type=float,
-        default=argparse.SUPPRESS,
-        metavar="MS",
-        help="stage-2 window, and stage-1 unless --pfd-stage1-window-ms [20]",
-    )
-    g.add_argument(
-        "--pfd-stage1-window-ms",
-        default=argparse.SUPPRESS,
-        type=float,
-        metavar="MS",
-        help="stage-1 window [20]",
-    )
-    g.add_argument(
-        "--pfd-min-support",
-        default=argparse.SUPPRESS,
-        type=int,
-        metavar="N",
-        help="stage-1 'var' [1]",
-    )
-    g.add_argument(
-        "--pfd-min-active",
-        type=int,
-        default=argparse.SUPPRESS,
-        metavar="N",
-        help="stage-2 'neibor': keep needs more [3]",
-    )
-    g.add_argument(
-        "--pfd-fifo-size",
-        default=argparse.SUPPRESS,
-        type=int,
-        metavar="N",
-        help="flip times kept per pixel [5]",
-    )
-    g.add_argument(
-        "--pfd-flip-against-previous",
-        action="store_true",
-        default=argparse.SUPPRESS,
-        help="count flips against the previous event, not the pixel's first (not the original)",
-    )
-    g.add_argument(
-        "--pfd-real-score",
-        action="store_true",
-        default=argparse.SUPPRESS,
-        help="test the real-valued score <= 1, not the original's truncated int",
-    )
-    g = p.add_argument_group("voxel (paper: 20 ms, 8 bins)")
-    g.add_argument(
-        "--voxel-window-ms",
-        default=argparse.SUPPRESS,
-        type=float,
-        metavar="MS",
-        help="voxel window [20]",
-    )
-    g.add_argument(
-        "--voxel-bins", default=argparse.SUPPRESS, type=int, metavar="N", help="temporal bins [8]"
-    )
+    for params, _ in _param_groups():  # --model, --efr-*, --pfd-*, --voxel-*
+        add_param_options(p, params)
     p.set_defaults(func=run)
 
 
 def method_params(args: argparse.Namespace) -> dict[str, Any]:
     """The method parameters given on the command line (only those given)."""
     params: dict[str, Any] = {}
-    for dest, (methods, name, convert) in _OPTIONS.items():
-        value = getattr(args, dest, None)
-        if value is None:
-            continue
-        if args.method not in methods:
-            flag = "--" + dest.replace("_", "-")
-            if dest == "efr_warmup" and not value:
-                flag = "--no-efr-warmup"
-            raise ParameterError(f"{flag} applies to --method {' or '.join(methods)}")
-        params[name] = convert(value)
+    for group, methods in _param_groups():
+        params.update(param_options(args, group, args.method, methods))
     if "window_us" in params and args.method.startswith("pfd"):
         params.setdefault("stage1_window_us", params["window_us"])
-    bias_path = getattr(args, "efr_bias", None)
-    if bias_path is not None:
-        if args.method != "efr":
-            raise ParameterError("--efr-bias applies to --method efr")
-        params["bias"] = _load_bias(bias_path)
     return params
-
-
-def _load_bias(path: Path) -> np.ndarray:
-    from ..errors import EventFileError
-
-    try:
-        bias = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise EventFileError(path, f"cannot read a bias map ({exc})") from None
-    if not isinstance(bias, np.ndarray) or bias.ndim != 2:
-        raise EventFileError(path, "a bias map must be a 2-D (H, W) array in a .npy file")
-    return bias
 
 
 def run(args: argparse.Namespace) -> int:

@@ -23,7 +23,7 @@ Examples
 >>> get_kind("nope")  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
-edeflare.errors.ParameterError: unknown dataset kind 'nope'; registered kinds: dsec, flare, optics
+edeflare.errors.ParameterError: unknown dataset kind 'nope'; registered dataset kinds: dsec, ...
 """
 
 from __future__ import annotations
@@ -35,9 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import EdeflareError, ParameterError
+from .._registry import Registry
+from ..errors import EdeflareError
 
 __all__ = [
+    "DATASET_KINDS",
     "STAGES",
     "DatasetKind",
     "GenerationError",
@@ -51,7 +53,6 @@ STAGES = ("background", "render", "simulate", "compose", "write")
 """Stages timed per sequence."""
 
 _BUILTIN = ("eflare", "eflare_r_sim", "dsec_flare")
-_KINDS: dict[str, DatasetKind] = {}
 
 
 class GenerationError(EdeflareError, ValueError):
@@ -130,9 +131,7 @@ def register_kind(name: str, **options: Any) -> Callable[[Callable[..., KindSequ
     """
 
     def deco(make_sequence: Callable[..., KindSequence]) -> Callable[..., KindSequence]:
-        if name in _KINDS:
-            raise ParameterError(f"dataset kind {name!r} is already registered")
-        _KINDS[name] = DatasetKind(name, make_sequence, **options)
+        DATASET_KINDS.register(name, DatasetKind(name, make_sequence, **options))
         return make_sequence
 
     return deco
@@ -143,18 +142,15 @@ def _load_builtin() -> None:
         importlib.import_module(f"{__package__}.{module}")
 
 
+DATASET_KINDS: Registry[DatasetKind] = Registry("dataset kind", loader=_load_builtin)
+"""The registered dataset kinds (the built-in ones load on first look-up)."""
+
+
 def get_kind(name: str) -> DatasetKind:
     """The registered kind ``name`` (an unknown name lists the valid ones)."""
-    if name not in _KINDS:
-        _load_builtin()
-    if name not in _KINDS:
-        raise ParameterError(
-            f"unknown dataset kind {name!r}; registered kinds: {', '.join(list_kinds())}"
-        )
-    return _KINDS[name]
+    return DATASET_KINDS[name]
 
 
 def list_kinds() -> list[str]:
     """Names of the registered kinds, sorted."""
-    _load_builtin()
-    return sorted(_KINDS)
+    return DATASET_KINDS.names()

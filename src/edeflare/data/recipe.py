@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .._registry import Registry
 from ..errors import EdeflareError, ParameterError
 from ..events import check_sensor_size
 from ..sim.background import SceneConfig, relative_names
@@ -281,23 +282,23 @@ def _asdict(value: Any) -> Any:
 # little motion gives the background events to keep).
 _SLOW_STREET = SceneConfig(pan_px_per_s=(10.0, 120.0), zoom_per_s=(0.0, 0.3), shake_px=(0.0, 1.0))
 
-RECIPES: dict[str, Recipe] = {
-    "eflare-2.7k": Recipe(name="eflare-2.7k"),
-    "eflare-mini": Recipe(
-        name="eflare-mini", sequences=120, test_sequences=12, sensor_size=(346, 260)
-    ),
-    "eflare-r-sim": Recipe(
+RECIPES: Registry[Recipe] = Registry("recipe")
+for _recipe in (
+    Recipe(name="eflare-2.7k"),
+    Recipe(name="eflare-mini", sequences=120, test_sequences=12, sensor_size=(346, 260)),
+    Recipe(
         name="eflare-r-sim", kind="optics", sequences=30, sensor_size=(640, 480), scene=_SLOW_STREET
     ),
-    "eflare-r-sim-mini": Recipe(
+    Recipe(
         name="eflare-r-sim-mini",
         kind="optics",
         sequences=20,
         sensor_size=(346, 260),
         scene=_SLOW_STREET,
     ),
-    "dsec-flare": Recipe(name="dsec-flare", kind="dsec", sensor_size=(640, 480)),
-}
+    Recipe(name="dsec-flare", kind="dsec", sensor_size=(640, 480)),
+):
+    RECIPES.register(_recipe.name, _recipe)
 """Named recipes: the paper's E-Flare-2.7K (synthetic backgrounds unless files are given),
 and a small one (120 sequences of 100 ms at 346x260: 540 training and 60 test windows);
 the optics test sets after E-Flare-R's physical model, ``eflare-r-sim`` (30 sequences of
@@ -315,4 +316,4 @@ def list_recipes() -> list[str]:
     >>> list_recipes()
     ['dsec-flare', 'eflare-2.7k', 'eflare-mini', 'eflare-r-sim', 'eflare-r-sim-mini']
     """
-    return sorted(RECIPES)
+    return RECIPES.names()

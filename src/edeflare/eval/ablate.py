@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .._registry import Registry
 from ..data.generate import RECIPES, Recipe, generate_dataset
 from ..errors import ParameterError
 from ..io._atomic import atomic_path
@@ -55,14 +56,14 @@ from .tables import ResultsTable
 
 __all__ = [
     "ABLATIONS",
-    "VARIANTS",
+    "VARIANT_ROWS",
     "AblationConfig",
     "AblationResult",
     "list_ablations",
     "run_ablation",
 ]
 
-VARIANTS: dict[str, str] = {
+VARIANT_ROWS: dict[str, str] = {
     "simple": "Simple",
     "simple+random": "Simple + Random",
     "physical+random": "Physical + Random",
@@ -89,7 +90,7 @@ class AblationConfig:
     training : TrainConfig
         The same for every variant (equal budgets).
     variants : tuple of str
-        Keys of :data:`VARIANTS`; ``physical`` (Full) must be among them.
+        Keys of :data:`VARIANT_ROWS`; ``physical`` (Full) must be among them.
 
     Examples
     --------
@@ -102,12 +103,12 @@ class AblationConfig:
     train_recipe: Recipe
     test_recipe: Recipe
     training: TrainConfig
-    variants: tuple[str, ...] = tuple(VARIANTS)
+    variants: tuple[str, ...] = tuple(VARIANT_ROWS)
 
     def __post_init__(self) -> None:
-        unknown = [v for v in self.variants if v not in VARIANTS]
+        unknown = [v for v in self.variants if v not in VARIANT_ROWS]
         if unknown:
-            raise ParameterError(f"unknown variant(s) {unknown}; known: {list(VARIANTS)}")
+            raise ParameterError(f"unknown variant(s) {unknown}; known: {list(VARIANT_ROWS)}")
         if FULL not in self.variants:
             raise ParameterError(f"the variants must include {FULL!r} (the full configuration)")
         if len(set(self.variants)) != len(self.variants):
@@ -209,7 +210,9 @@ def _ablations() -> dict[str, AblationConfig]:
     }
 
 
-ABLATIONS: dict[str, AblationConfig] = _ablations()
+ABLATIONS: Registry[AblationConfig] = Registry("ablation")
+for _name, _config in _ablations().items():
+    ABLATIONS.register(_name, _config)
 """Named ablations: ``small`` (a minute on a CPU; for tests and CI; too small to
 rank the variants), ``cpu`` (eflare-mini, ``unet2d.lite``, 2000 iterations per
 variant: a few hours on 2 cores) and ``paper`` (E-Flare-2.7K and the paper's
@@ -312,11 +315,11 @@ def run_ablation(
     rows: dict[str, str] = {"raw": "raw"}
     params: dict[str, Mapping[str, Any]] = {}
     for variant, weights in models.items():
-        rows[VARIANTS[variant]] = "model"
-        params[VARIANTS[variant]] = {"weights": weights}
+        rows[VARIANT_ROWS[variant]] = "model"
+        params[VARIANT_ROWS[variant]] = {"weights": weights}
     result = benchmark(test_paths, rows, params=params, seed=seed, progress=progress)
     values = {row: s.means for row, s in result.evaluation.methods.items()}
-    table = ResultsTable(values, reference=VARIANTS[FULL])
+    table = ResultsTable(values, reference=VARIANT_ROWS[FULL])
     _write_table(out / "table", table, result, config)
     return AblationResult(table, result, models)
 

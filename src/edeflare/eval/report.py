@@ -68,7 +68,7 @@ DEFAULT_METHODS = ("raw", "voxel", "efr", "pfd-a", "pfd-b", "model")
 INPUT = "input"
 GT = "ground truth"
 _RAW = "raw"
-KINDS = ("reconstruction", "events")
+FIGURE_KINDS = ("reconstruction", "events")
 """What the flare score is computed on: ``|L|`` of the reconstruction, or event counts."""
 _GIF_MAX_WIDTH = 1600
 
@@ -141,7 +141,8 @@ class FigureData:
     def medians(self) -> dict[str, dict[str, float]]:
         """``{kind: {column: median flare score over the windows where it is defined}}``."""
         return {
-            kind: {c: _median(v.tolist()) for c, v in self.scores(kind).items()} for kind in KINDS
+            kind: {c: _median(v.tolist()) for c, v in self.scores(kind).items()}
+            for kind in FIGURE_KINDS
         }
 
     def kept(self, kind: str) -> dict[str, tuple[float, float]]:
@@ -225,7 +226,7 @@ class FigureCollector:
         self._rows: list[str] = []
         self._samples: list[Sample] = []
         self._energies: dict[str, dict[str, list[tuple[float, float]]]] = {
-            kind: {INPUT: [], GT: []} for kind in KINDS
+            kind: {INPUT: [], GT: []} for kind in FIGURE_KINDS
         }
         self._current: str | None = None
         self._order = -1
@@ -258,7 +259,7 @@ class FigureCollector:
             return  # the input itself: its column is "input"
         if row not in self._rows:
             self._rows.append(row)
-            for kind in KINDS:
+            for kind in FIGURE_KINDS:
                 self._energies[kind][row] = []
         self._stream(row, output)
 
@@ -377,7 +378,7 @@ class FigureCollector:
                     c: np.array(self._energies[kind][c], dtype=np.float64).reshape(-1, 2)
                     for c in columns
                 }
-                for kind in KINDS
+                for kind in FIGURE_KINDS
             },
             self._size,
             self.cutoff_hz,
@@ -576,7 +577,7 @@ def _results_json(result: BenchmarkResult, figures: FigureData | None) -> str:
                     c: {"flare": _nan_none(f), "source": _nan_none(src)}
                     for c, (f, src) in figures.kept(kind).items()
                 }
-                for kind in KINDS
+                for kind in FIGURE_KINDS
             },
             "windows": figures.n_windows,
             "reconstruction": [
@@ -645,7 +646,7 @@ def _page(
         )
         medians = figures.medians()
         n_windows = figures.n_windows
-        kept = {kind: figures.kept(kind) for kind in KINDS}
+        kept = {kind: figures.kept(kind) for kind in FIGURE_KINDS}
         kept_rows = [
             (f"{part} energy {verb}, {name}", {c: v[i] for c, v in kept[kind].items()})
             for kind, name in (("reconstruction", "reconstructed images"), ("events", "events"))

@@ -33,11 +33,12 @@ from typing import Any
 
 from torch import nn
 
+from .._registry import Registry
 from .flaremask import FlareMaskNet
 from .unet2d import ResidualUNet2d
 from .unet3d import ResidualUNet3d
 
-__all__ = ["ModelPreset", "create_model", "get_preset", "list_models", "register_model"]
+__all__ = ["MODELS", "ModelPreset", "create_model", "get_preset", "list_models", "register_model"]
 
 
 @dataclass(frozen=True)
@@ -50,28 +51,24 @@ class ModelPreset:
     description: str = ""
 
 
-_PRESETS: dict[str, ModelPreset] = {}
+MODELS: Registry[ModelPreset] = Registry("model")
+"""The registered presets: name -> :class:`ModelPreset`."""
 
 
 def register_model(preset: ModelPreset) -> ModelPreset:
     """Add a preset to the registry (a name can be registered once)."""
-    if preset.name in _PRESETS:
-        raise ValueError(f"model {preset.name!r} is already registered")
-    _PRESETS[preset.name] = preset
-    return preset
+    return MODELS.register(preset.name, preset)
 
 
 def list_models() -> list[str]:
     """Names of the registered model presets."""
-    return sorted(_PRESETS)
+    return MODELS.names()
 
 
 def get_preset(name: str) -> ModelPreset:
-    """The preset called ``name``; unknown names raise ``ValueError`` listing the valid ones."""
-    try:
-        return _PRESETS[name]
-    except KeyError:
-        raise ValueError(f"unknown model {name!r}; choose one of {list_models()}") from None
+    """The preset called ``name``; unknown names raise ``ParameterError`` (a ``ValueError``)
+    listing the valid ones."""
+    return MODELS[name]
 
 
 def create_model(name: str) -> nn.Module:
