@@ -34,8 +34,8 @@ import numpy as np
 from _common import best_of, random_events, report
 
 from edeflare.baselines.efr import EFRFilter
+from edeflare.data.toy import toy_flare_pair
 from edeflare.deflare import create_method, list_methods
-from edeflare.demo import synthetic_flare_scene
 
 SIZE = (640, 480)
 TARGETS = {"efr": 1.0, "pfd-a": 2.0, "pfd-b": 3.0}
@@ -45,7 +45,7 @@ ORIGINAL_CPP = {"efr": 0.5, "pfd-a": 1.25, "pfd-b": 2.3}
 def flare_scene(n_events: int, seed: int = 0):
     """The demo's flare scene at 640x480, long enough for about ``n_events`` events."""
     duration = max(100_000, int(n_events / 0.86))  # about 0.86 events per µs
-    return synthetic_flare_scene(SIZE, duration, rng=seed)
+    return toy_flare_pair(SIZE, duration, rng=seed)
 
 
 def throughput(streams: dict[str, np.ndarray], repeat: int) -> list[dict[str, object]]:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from edeflare.demo import synthetic_flare_scene
+from edeflare.data.toy import toy_flare_pair
 from edeflare.errors import ParameterError
 from edeflare.eval.flare_score import (
     FlareGeometry,
@@ -80,7 +80,7 @@ def test_locate_prefers_a_compact_bright_region_over_hot_pixels():
 def test_on_events_of_the_procedural_scene():
     """The halo and streaks of the demo scene's flare score well above the clean stream."""
     size = (160, 120)
-    scene = synthetic_flare_scene(size, duration_us=40_000, rng=3)
+    scene = toy_flare_pair(size, duration_us=40_000, rng=3)
     observed, clean = event_energy(scene.observed, size), event_energy(scene.clean, size)
     g = flare_geometry(observed)
     assert np.hypot(g.center[0] - 112, g.center[1] - 36) <= 4  # the lamp is at (0.7 W, 0.3 H)

@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 
 from edeflare.cli import main
-from edeflare.demo import synthetic_flare_scene
+from edeflare.data.toy import toy_flare_pair
 from edeflare.errors import ParameterError
 from edeflare.eval.benchmark import benchmark
 from edeflare.eval.report import FigureCollector, write_report
@@ -83,7 +83,7 @@ def _write_split(folder: Path) -> Path:
     """Three 60 ms sequences: one without flare, two with different amounts of it."""
     folder.mkdir()
     for k, rng in enumerate((11, 12, 13)):
-        scene = synthetic_flare_scene(SIZE, duration_us=60_000, rng=rng)
+        scene = toy_flare_pair(SIZE, duration_us=60_000, rng=rng)
         inputs = scene.clean if k == 0 else scene.observed
         if k == 2:  # less flare: keep every other flare event
             flare = np.setdiff1d(scene.observed, scene.clean)

@@ -26,6 +26,7 @@ __all__ = [
     "center_crop",
     "check_events",
     "check_sensor_size",
+    "count_map",
     "crop",
     "empty_events",
     "iter_time_windows",
@@ -45,6 +46,34 @@ SensorSize = tuple[int, int]
 """``(width, height)`` in pixels."""
 
 _U16_MAX = np.iinfo(np.uint16).max
+
+
+def count_map(events: np.ndarray, sensor_size: SensorSize, *, signed: bool = False) -> np.ndarray:
+    """Events per pixel, ``(H, W)``: the one count map of the package.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        :data:`EVENT_DTYPE` events on ``sensor_size``.
+    sensor_size : (width, height)
+    signed : bool
+        Count ON as +1 and OFF as -1 (float64); default: all events (int64).
+
+    Examples
+    --------
+    >>> ev = make_events([0, 1, 2], [1, 1, 0], [0, 0, 0], [1, 0, 1])
+    >>> count_map(ev, (2, 1)).tolist(), count_map(ev, (2, 1), signed=True).tolist()
+    ([[1, 2]], [[1.0, 0.0]])
+    """
+    check_events(events, sensor_size)
+    width, height = check_sensor_size(sensor_size)
+    flat = events["y"].astype(np.int64) * width + events["x"]
+    if signed:
+        sign = events["p"].astype(np.int64) * 2 - 1
+        counts = np.bincount(flat, weights=sign, minlength=width * height)
+    else:
+        counts = np.bincount(flat, minlength=width * height)
+    return counts.reshape(height, width)
 
 
 def empty_events(n: int = 0) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from .errors import EdeflareError
-from .events import SensorSize, check_events, check_sensor_size
+from .events import SensorSize, check_events, check_sensor_size, count_map
 from .io._atomic import atomic_path
 
 __all__ = [
@@ -69,12 +69,8 @@ def event_frame(
     width, height = check_sensor_size(sensor_size)
     if background not in _BACKGROUNDS:
         raise EdeflareError(f"background must be one of {sorted(_BACKGROUNDS)}, got {background!r}")
-    flat = events["y"].astype(np.int64) * width + events["x"]
-    sign = events["p"].astype(np.int64) * 2 - 1
-    net = np.bincount(flat, weights=sign, minlength=width * height).reshape(height, width)
-    hit = np.zeros(width * height, dtype=bool)
-    hit[flat] = True
-    hit = hit.reshape(height, width)
+    net = count_map(events, (width, height), signed=True)
+    hit = count_map(events, (width, height)) > 0
     img = np.empty((height, width, 3), dtype=np.uint8)
     img[:] = _BACKGROUNDS[background]
     img[net > 0] = ON_COLOR

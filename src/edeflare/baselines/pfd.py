@@ -43,6 +43,7 @@ import numba
 import numpy as np
 
 from .._registry import cli_option
+from .._validation import check_int
 from ..errors import ParameterError
 from ..events import SensorSize, check_events, check_sensor_size
 from ._compiled import prefetch as _prefetch
@@ -223,12 +224,6 @@ class PFDParams:
 _D = PFDParams()
 
 
-def _check_int(name: str, value: object, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-        raise ParameterError(f"{name} must be an int >= {lo}, got {value!r}")
-    return int(value)
-
-
 class PFDFilter:
     """PFD as a state machine: feed sorted chunks in order, the state carries over.
 
@@ -277,11 +272,11 @@ class PFDFilter:
     ) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
         width, height = self.sensor_size
-        self.stage1_window_us = _check_int("stage1_window_us", stage1_window_us, 0)
-        self.window_us = _check_int("window_us", window_us, 0)
-        self.min_support = _check_int("min_support", min_support, 0)
-        self.min_active = _check_int("min_active", min_active, 0)
-        self.fifo_size = _check_int("fifo_size", fifo_size, 1)
+        self.stage1_window_us = check_int("stage1_window_us", stage1_window_us, 0)
+        self.window_us = check_int("window_us", window_us, 0)
+        self.min_support = check_int("min_support", min_support, 0)
+        self.min_active = check_int("min_active", min_active, 0)
+        self.fifo_size = check_int("fifo_size", fifo_size, 1)
         if fifo_size > 255:
             raise ParameterError(f"fifo_size must be at most 255, got {fifo_size!r}")
         if score not in _SCORES:

@@ -42,7 +42,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import ParameterError
-from ..events import SensorSize, check_events, check_sensor_size
+from ..events import SensorSize, count_map
 
 __all__ = [
     "FlareGeometry",
@@ -82,10 +82,7 @@ def event_energy(events: np.ndarray, sensor_size: SensorSize) -> np.ndarray:
     >>> event_energy(make_events([0, 1, 2], [1, 1, 0], [0, 0, 0], [1, 0, 1]), (2, 1)).tolist()
     [[1.0, 2.0]]
     """
-    check_events(events, sensor_size)
-    width, height = check_sensor_size(sensor_size)
-    flat = events["y"].astype(np.int64) * width + events["x"]
-    return np.bincount(flat, minlength=width * height).reshape(height, width).astype(np.float64)
+    return count_map(events, sensor_size).astype(np.float64)
 
 
 def _check_energy(energy: np.ndarray) -> np.ndarray:

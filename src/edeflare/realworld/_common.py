@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import EdeflareError, ParameterError
-from ..events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size
+from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, count_map
 
 MANIFEST_FORMAT = "edeflare-pairs/1"
 LOW_CONFIDENCE = 0.1
@@ -63,10 +63,7 @@ def _count_map(data: np.ndarray, sensor_size: SensorSize | None) -> np.ndarray:
     if isinstance(data, np.ndarray) and data.dtype == EVENT_DTYPE:
         if sensor_size is None:
             raise ParameterError("sensor_size is required with events")
-        width, height = check_sensor_size(sensor_size)
-        check_events(data, (width, height))
-        flat = data["y"].astype(np.int64) * width + data["x"]
-        return np.bincount(flat, minlength=width * height).reshape(height, width).astype(float)
+        return count_map(data, sensor_size).astype(float)
     counts = np.asarray(data, dtype=np.float64)
     if counts.ndim != 2:
         raise ParameterError(f"expected events or an (H, W) count map, got shape {counts.shape}")

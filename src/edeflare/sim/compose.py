@@ -80,7 +80,14 @@ from typing import Any, Protocol
 import numpy as np
 from scipy import ndimage
 
-from ..events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size, merge_events
+from ..events import (
+    EVENT_DTYPE,
+    SensorSize,
+    check_events,
+    check_sensor_size,
+    count_map,
+    merge_events,
+)
 from ._validation import SimError, check_choice, check_range, dataclass_from_dict, make_rng
 from .dvs import IdealSimulator, VoltmeterSimulator
 
@@ -634,8 +641,7 @@ class CountIntensity:
         check_range("scale", scale, 0, lo_open=True)
         check_range("smoothing_px", smoothing_px, 0)
         check_range("floor", floor, 0)
-        flat = events["y"].astype(np.int64) * width + events["x"]
-        counts = np.bincount(flat, minlength=width * height).reshape(height, width) * scale
+        counts = count_map(events, (width, height)) * scale
         counts = counts.astype(np.float64)
         if smoothing_px > 0:
             counts = ndimage.gaussian_filter(counts, smoothing_px, mode="nearest")
