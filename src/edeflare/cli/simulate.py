@@ -96,21 +96,23 @@ def run(args: argparse.Namespace) -> int:
     """Build the recipe from the options, generate, print a summary."""
     from ..data.dsec_flare import parse_window
     from ..data.generate import RECIPES, generate_dataset
+    from ..data.kinds import get_kind
     from ..errors import ParameterError
 
     base = RECIPES[args.recipe]  # an unknown name is an error listing the valid ones
-    misplaced = {
-        "--test-sequences": base.kind != "flare" and args.test_sequences is not None,
-        "--sequences": base.kind == "dsec" and args.sequences is not None,
-        "--variant": base.kind != "flare" and args.variant is not None,
-        "--flare7k": base.kind != "flare" and args.flare7k is not None,
-        "--no-components": base.kind != "flare" and args.no_components,
-        "--background": base.kind == "dsec" and bool(args.background),
-        "--dsec-root": base.kind != "dsec" and args.dsec_root is not None,
-        "--dsec-window": base.kind != "dsec" and bool(args.dsec_window),
-        "--rectify": base.kind != "dsec" and args.rectify,
+    kind = get_kind(base.kind)
+    given = {  # the kind-specific options (data.kinds.KIND_OPTIONS) given
+        "--test-sequences": args.test_sequences is not None,
+        "--sequences": args.sequences is not None,
+        "--variant": args.variant is not None,
+        "--flare7k": args.flare7k is not None,
+        "--no-components": args.no_components,
+        "--background": bool(args.background),
+        "--dsec-root": args.dsec_root is not None,
+        "--dsec-window": bool(args.dsec_window),
+        "--rectify": args.rectify,
     }
-    bad = [name for name, wrong in misplaced.items() if wrong]
+    bad = [name for name, yes in given.items() if yes and name not in kind.cli_options]
     if bad:
         raise ParameterError(
             f"option(s) {', '.join(bad)} do not apply to --recipe {args.recipe} (test sets "
@@ -129,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
         changes["flare7k"] = str(args.flare7k)
     if args.no_components:
         changes["components"] = False
-    if base.kind == "dsec":
+    if "--dsec-root" in kind.cli_options:  # the DSEC windows' config
         dsec = base.dsec
         if args.dsec_root is not None:
             dsec = dataclasses.replace(dsec, root=str(args.dsec_root))

@@ -490,6 +490,7 @@ def _identity(config: dict[str, Any]) -> dict[str, Any]:
     count=lambda config: len(expand_windows(config.windows)),
     check=_check,
     identity=_identity,
+    cli_options=("--dsec-root", "--dsec-window", "--rectify"),
 )
 def _make_sequence(recipe: Recipe, index: int, source: Any = None) -> KindSequence:
     """The ``"dsec"`` kind: :func:`dsec_sequence` of the recipe's ``dsec`` config."""

@@ -81,7 +81,17 @@ def draw_inputs(
     return SequenceInputs(index, script, background, s_comp, s_fwd)
 
 
-@register_kind("flare")
+@register_kind(
+    "flare",
+    cli_options=(
+        "--sequences",
+        "--test-sequences",
+        "--variant",
+        "--flare7k",
+        "--no-components",
+        "--background",
+    ),
+)
 def flare_sequence(
     recipe: Recipe, index: int, source: BackgroundSource | None = None
 ) -> KindSequence:

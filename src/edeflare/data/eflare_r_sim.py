@@ -107,7 +107,13 @@ def optics_sequence(
     return {"input": pair.input, "gt": pair.gt}, scene, description, seconds
 
 
-@register_kind("optics", config_field="optics", config_type=OpticsSceneConfig, test_only=True)
+@register_kind(
+    "optics",
+    config_field="optics",
+    config_type=OpticsSceneConfig,
+    test_only=True,
+    cli_options=("--sequences", "--background"),
+)
 def _make_sequence(
     recipe: Recipe, index: int, source: BackgroundSource | None = None
 ) -> KindSequence:

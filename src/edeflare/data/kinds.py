@@ -40,6 +40,7 @@ from ..errors import EdeflareError
 
 __all__ = [
     "DATASET_KINDS",
+    "KIND_OPTIONS",
     "STAGES",
     "DatasetKind",
     "GenerationError",
@@ -51,6 +52,18 @@ __all__ = [
 
 STAGES = ("background", "render", "simulate", "compose", "write")
 """Stages timed per sequence."""
+KIND_OPTIONS = (
+    "--sequences",
+    "--test-sequences",
+    "--variant",
+    "--flare7k",
+    "--no-components",
+    "--background",
+    "--dsec-root",
+    "--dsec-window",
+    "--rectify",
+)
+"""Options of ``edeflare simulate`` that apply to some kinds only (each kind lists its own)."""
 
 _BUILTIN = ("eflare", "eflare_r_sim", "dsec_flare")
 
@@ -110,6 +123,9 @@ class DatasetKind:
         ``recipe -> None``: find the kind's inputs before a run (errors surface early).
     identity : callable, optional
         ``config dict -> dict`` with paths that depend on the data's place removed.
+    cli_options : tuple of str
+        The kind-specific options of ``edeflare simulate`` (:data:`KIND_OPTIONS`)
+        that apply to this kind; the others are refused.
     """
 
     name: str
@@ -121,6 +137,7 @@ class DatasetKind:
     count: Callable[[Any], int] | None = None
     check: Callable[[Any], None] | None = None
     identity: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    cli_options: tuple[str, ...] = ()
 
 
 def register_kind(name: str, **options: Any) -> Callable[[Callable[..., KindSequence]], Any]:
