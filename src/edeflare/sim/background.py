@@ -68,6 +68,7 @@ from ._validation import (
 )
 from .camera import camera_simulator
 from .compose import AccumulatedIntensity, AccumulationParams, CountIntensity, IntensityField
+from .pair import EventRecorder, run_frames
 from .script import SensorSpec
 
 __all__ = [
@@ -655,8 +656,9 @@ class SyntheticBackground:
         sim = camera_simulator(sensor or SensorSpec(), size, rng=np.random.default_rng(sim_seq))
         n = max(2, math.ceil(duration * self.config.fps * 1e-6) + 1)
         times = np.round(np.linspace(0, duration, n)).astype(np.int64)
-        chunks = [sim.feed(scene.frame(int(t)), int(t)) for t in times]
-        events = np.concatenate(chunks)
+        recorder = EventRecorder(sim, "street")
+        run_frames(((int(t), {"street": scene.frame(int(t))}) for t in times), [recorder])
+        events = recorder.events()
         events = events[events["t"] < duration]
         noise = _noise_events(
             scene.params["noise_rate_hz"], size, duration, np.random.default_rng(noise_seq)

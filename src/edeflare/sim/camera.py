@@ -13,7 +13,7 @@ import numpy as np
 
 from ..events import SensorSize, check_sensor_size
 from ._validation import make_rng
-from .dvs import IdealSimulator, VoltmeterSimulator, draw_thresholds
+from .dvs import IdealSimulator, VoltmeterSimulator, draw_thresholds, make_simulator
 from .script import SensorSpec
 
 __all__ = ["camera_simulator", "sensor_pair"]
@@ -70,7 +70,7 @@ def camera_simulator(
     size = check_sensor_size(sensor_size)
     gen = make_rng(rng)
     if spec.model == "voltmeter":
-        return VoltmeterSimulator(size, spec.voltmeter, rng=gen)
+        return make_simulator("voltmeter", size, spec.voltmeter, rng=gen)
     camera_seq = np.random.SeedSequence(spec.seed).spawn(3)[2]
     thresholds = draw_thresholds(size, spec.ideal, rng=np.random.default_rng(camera_seq))
-    return IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=gen)
+    return make_simulator("ideal", size, spec.ideal, thresholds=thresholds, rng=gen)

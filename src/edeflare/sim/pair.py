@@ -23,8 +23,9 @@ of 600 frames never sits in memory. The users of the loop:
   for ``variant="forward"``, the sums :math:`I_{bg} + I_f` and
   :math:`I_{bg} + I_{light}` simulated directly (Eq. 5-6);
 - :func:`edeflare.sim.stage1.simulate_flare_events` (flare and light events only),
-  :func:`edeflare.sim.compose.forward_pair` (the forward model on given frames) and
-  :func:`edeflare.sim.optics_scene.simulate_optics_pair` (the optics test pairs).
+  :func:`edeflare.sim.compose.forward_pair` (the forward model on given frames),
+  :func:`edeflare.sim.optics_scene.simulate_optics_pair` (the optics test pairs) and
+  :meth:`edeflare.sim.background.SyntheticBackground.draw` (a synthetic street's events).
 
 Examples
 --------
@@ -43,19 +44,21 @@ import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numba
 import numpy as np
 
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size
 from ._validation import SimError, check_choice
-from .background import Background
 from .camera import camera_simulator, sensor_pair
 from .compose import VARIANTS, Components, CountIntensity, compose_pair
 from .dvs import IdealSimulator, VoltmeterSimulator
 from .render import Renderer
 from .script import FlareScript
+
+if TYPE_CHECKING:  # pragma: no cover - background.py runs its own frames through this loop
+    from .background import Background
 
 __all__ = [
     "PAIR_VARIANTS",
