@@ -18,7 +18,11 @@ and compares them with a recorded JSON::
     python benchmarks/refactor_proof.py check proof.json
 
 Run it at the commit before the change and after it; ``check`` lists every
-digest that differs and exits 1.
+digest that differs and exits 1. Recorded: ``results/refactor_proof_e8f9624.json``
+(before issue 15) and ``results/refactor_proof_caac30c.json`` (after it: every
+digest of the first unchanged; new methods and commands added since). Run it
+in a clean worktree (``PYTHONPATH=WORKTREE/src``) so that uncommitted work in
+progress is not measured.
 """
 
 from __future__ import annotations
