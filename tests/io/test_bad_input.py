@@ -99,7 +99,7 @@ def test_aedat4_cut_inside_its_header(tmp_path, real_data):
     data = (real_data / "davis346_flicker_lamps.aedat4").read_bytes()
     path = tmp_path / "head.aedat4"
     path.write_bytes(data[:100])
-    assert_read_fails(path, match="cannot decode")
+    assert_read_fails(path, match="truncated AEDAT 4 header")
 
 
 def test_truncated_dat_odd_byte_count(tmp_path, real_data):

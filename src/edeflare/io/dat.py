@@ -43,7 +43,12 @@ def _parse_header(path: Path) -> tuple[dict[str, str], int, int]:
             line = f.readline()
             if not line.endswith(b"\n"):
                 raise EventFileError(path, "truncated header")
-            key, _, value = line.decode("latin-1").strip().partition(" ")
+            text = line.decode("latin-1").rstrip("\r\n")
+            if not text.isprintable() or not text.isascii():
+                raise EventFileError(
+                    path, f"corrupt header: line {len(fields) + 1} holds non-printable bytes"
+                )
+            key, _, value = text.strip().partition(" ")
             fields[key.lower()] = value.strip()
         type_size = f.read(2)
         if len(type_size) < 2:
@@ -70,7 +75,10 @@ def open_dat(
         except ValueError:
             raise EventFileError(path, "bad Width/Height in header") from None
     version = fields.get("version", "2").strip()
-    t0 = int(fields.get("t0", "0") or 0)
+    try:
+        t0 = int(fields.get("t0", "0") or 0)
+    except ValueError:
+        raise EventFileError(path, f"corrupt header: bad t0 {fields['t0']!r}") from None
     body = path.stat().st_size - offset
     if body % _RECORD.itemsize:
         raise EventFileError(

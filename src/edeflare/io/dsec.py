@@ -21,7 +21,9 @@ millisecond, so a multi-GB file never loads whole.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import struct
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -42,6 +44,71 @@ _U32_MAX = np.iinfo(np.uint32).max
 
 def _compression() -> dict[str, Any]:
     return dict(hdf5plugin.Blosc(cname="zstd", clevel=3, shuffle=hdf5plugin.Blosc.SHUFFLE))
+
+
+# What h5py raises on a corrupt file: OSError, RuntimeError ("Object visitation failed",
+# "bad heap free list"), KeyError, ValueError or TypeError from inside HDF5.
+_H5_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)
+
+
+@contextlib.contextmanager
+def _h5_errors(path: Path, what: str) -> Iterator[None]:
+    """Turn h5py's errors on a corrupt file into :class:`EventFileError` naming ``path``."""
+    try:
+        yield
+    except EventFileError:
+        raise
+    except _H5_ERRORS as exc:
+        raise EventFileError(path, f"{what} ({type(exc).__name__}: {exc})") from None
+
+
+_BLOSC = 32001
+# Filters a DSEC file may use: deflate, shuffle, fletcher32, szip, nbit, scaleoffset, and
+# hdf5plugin's LZ4, bitshuffle, zstd, Blosc2. Blosc chunks are checked before decoding.
+_KNOWN_FILTERS = {1, 2, 3, 4, 5, 6, _BLOSC, 32004, 32008, 32015, 32026}
+
+
+def _check_chunks(path: Path, name: str, d: h5py.Dataset, raw: Any) -> None:
+    """Refuse a dataset whose filters or Blosc chunk headers would crash the decoder.
+
+    Blosc trusts its parameters (type size, chunk bytes) and each chunk's
+    16-byte header; corrupt ones make it read or write out of bounds and
+    kill the process (SIGSEGV), which no Python code can catch.
+    """
+    plist = d.id.get_create_plist()
+    blosc = False
+    for i in range(plist.get_nfilters()):
+        code, _, values, _ = plist.get_filter(i)
+        if code not in _KNOWN_FILTERS:
+            raise EventFileError(path, f"dataset {name!r} uses unknown filter {code}")
+        if code == _BLOSC:
+            blosc = True
+            if d.chunks is None:
+                raise EventFileError(path, f"dataset {name!r}: Blosc filter on unchunked data")
+            nbytes = int(np.prod(d.chunks)) * d.dtype.itemsize
+            if len(values) < 4 or values[2] != d.dtype.itemsize or values[3] != nbytes:
+                raise EventFileError(
+                    path, f"dataset {name!r}: corrupt Blosc filter parameters {values!r}"
+                )
+    if not blosc:
+        return
+    size = raw.seek(0, os.SEEK_END)
+    for i in range(d.id.get_num_chunks()):
+        info = d.id.get_chunk_info(i)
+        if info.size < 16 or info.byte_offset + info.size > size:
+            raise EventFileError(path, f"dataset {name!r}: chunk {i} lies outside the file")
+        if info.filter_mask:
+            continue  # stored without Blosc
+        raw.seek(info.byte_offset)
+        version, _, _, typesize, n, block, cbytes = struct.unpack("<BBBBIII", raw.read(16))
+        if (
+            cbytes != info.size
+            or n != nbytes
+            or typesize != d.dtype.itemsize
+            or not 0 < block <= n
+            or not 1 <= version <= 5
+        ):
+            raise EventFileError(path, f"dataset {name!r}: corrupt Blosc header in chunk {i}")
 
 
 def _find_event_groups(f: h5py.File) -> list[str]:
@@ -87,10 +154,11 @@ class DsecReader:
             raise EventFileError(self.path, "file is empty")
         try:
             self._file = h5py.File(self.path, "r")
-        except OSError as exc:
+        except _H5_ERRORS as exc:
             raise EventFileError(self.path, f"not a readable HDF5 file ({exc})") from None
         try:
-            self._open(group)
+            with _h5_errors(self.path, "corrupt HDF5 file"):
+                self._open(group)
         except BaseException:
             self._file.close()
             raise
@@ -135,6 +203,9 @@ class DsecReader:
             if d.dtype.kind not in "iu":
                 raise EventFileError(self.path, f"events {name} has dtype {d.dtype}, not integer")
         self.n_events = int(self._t.shape[0])
+        with open(self.path, "rb") as raw:
+            for name, d in zip("xypt", (self._x, self._y, self._p, self._t), strict=True):
+                _check_chunks(self.path, f"{group}/{name}", d, raw)
         # ms_to_idx and t_offset: in the group itself or in one of its parents (DSEC: root).
         self._ms_to_idx: np.ndarray | None = None
         self.t_offset = 0
@@ -142,6 +213,8 @@ class DsecReader:
         for depth in range(len(parts), -1, -1):
             parent = f["/".join(parts[:depth]) or "/"]
             if self._ms_to_idx is None and isinstance(parent.get("ms_to_idx"), h5py.Dataset):
+                with open(self.path, "rb") as raw:
+                    _check_chunks(self.path, "ms_to_idx", parent["ms_to_idx"], raw)
                 self._ms_to_idx = np.asarray(parent["ms_to_idx"][()], dtype=np.int64)
             if "t_offset" in parent and isinstance(parent.get("t_offset"), h5py.Dataset):
                 self.t_offset = int(parent["t_offset"][()])
@@ -183,13 +256,11 @@ class DsecReader:
         out = np.empty(stop - start, dtype=EVENT_DTYPE)
         if stop == start:
             return out
-        try:
+        with _h5_errors(self.path, "corrupt or truncated data"):
             t = self._t[start:stop]
             out["x"] = self._x[start:stop]
             out["y"] = self._y[start:stop]
             p = self._p[start:stop]
-        except (OSError, ValueError) as exc:
-            raise EventFileError(self.path, f"corrupt or truncated data ({exc})") from None
         out["t"] = t.astype(np.int64) + self.t_offset
         if p.size and (p.max() > 1 or p.min() < 0):
             # Some writers store OFF as -1; anything else is an error.
@@ -200,7 +271,8 @@ class DsecReader:
         return out
 
     def _t_at(self, i: int) -> int:
-        return int(self._t[i])
+        with _h5_errors(self.path, "corrupt or truncated data"):
+            return int(self._t[i])
 
     def index_of(self, t_us: int) -> int:
         """Index of the first event with absolute ``t >= t_us`` (``n_events`` if none)."""
@@ -225,7 +297,9 @@ class DsecReader:
                 lo = mid + 1
             else:
                 hi = mid
-        return lo + int(np.searchsorted(self._t[lo:hi].astype(np.int64), rel, side="left"))
+        with _h5_errors(self.path, "corrupt or truncated data"):
+            block = self._t[lo:hi].astype(np.int64)
+        return lo + int(np.searchsorted(block, rel, side="left"))
 
     def time_range(self) -> tuple[int, int] | None:
         """``(first t, last t)`` in absolute microseconds, or None for an empty file."""

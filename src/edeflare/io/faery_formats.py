@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import EventFileError
 from ..events import EVENT_DTYPE, SensorSize
+from .aedat4 import check_aedat4_container
 
 __all__ = ["RawHeader", "open_faery", "read_raw_header", "write_faery"]
 
@@ -41,6 +42,8 @@ _PLUGIN_SIZES: tuple[tuple[str, SensorSize], ...] = (
 _EVT3_MAX_SPAN_US = 1 << 24
 # EVT 2.0 keeps 34 bits of microseconds (28-bit TIME_HIGH of 64 µs): 4.77 hours.
 _EVT2_MAX_SPAN_US = 1 << 34
+# A header line is printable ASCII ('%' lines of Prophesee's tools are).
+_PRINTABLE = re.compile(r"%[\x20-\x7e\t]*")
 _SPAN_LIMITS = {"evt3": (_EVT3_MAX_SPAN_US, "16.8 s"), "evt2": (_EVT2_MAX_SPAN_US, "4.77 h")}
 
 
@@ -57,12 +60,17 @@ class RawHeader:
         self.version: str | None = None
         self.sensor_size: SensorSize | None = None
         self.plugin: str | None = None
-        for line in lines:
+        self.problem: str | None = None  # the first sign of a corrupt header, if any
+        for number, line in enumerate(lines, start=1):
             body = line.lstrip("%").strip()
             key, _, value = body.partition(" ")
             value = value.strip()
+            if self.problem is None and not _PRINTABLE.fullmatch(line):
+                self.problem = f"header line {number} holds non-printable bytes: {line[:60]!r}"
             if key == "evt":
                 self.version = {"2.0": "evt2", "2.1": "evt2.1", "3.0": "evt3"}.get(value)
+                if self.version is None and self.problem is None:
+                    self.problem = f"header line {number}: unknown EVT version {value!r}"
             elif key == "format":
                 fmt = value.split(";")[0].strip().upper()
                 self.version = {"EVT2": "evt2", "EVT21": "evt2.1", "EVT3": "evt3"}.get(
@@ -73,9 +81,11 @@ class RawHeader:
                 if width and height:
                     self.sensor_size = (int(width.group(1)), int(height.group(1)))
             elif key == "geometry":
-                m = re.match(r"(\d+)x(\d+)", value)
+                m = re.fullmatch(r"(\d{1,5})x(\d{1,5})", value)
                 if m:
                     self.sensor_size = (int(m.group(1)), int(m.group(2)))
+                elif self.problem is None:
+                    self.problem = f"header line {number}: malformed geometry {value!r}"
             elif key == "plugin_name":
                 self.plugin = value
         if self.sensor_size is None and self.plugin is not None:
@@ -137,6 +147,8 @@ def open_faery(
         header = read_raw_header(path)
         if not header.lines:
             raise EventFileError(path, "no Prophesee '%' header: not an EVT .raw file")
+        if header.problem is not None:
+            raise EventFileError(path, f"corrupt Prophesee header: {header.problem}")
         if header.version is None:
             raise EventFileError(
                 path, "header names no EVT version ('% evt 2.0|3.0' or '% format')"
@@ -145,6 +157,8 @@ def open_faery(
         kwargs["version_fallback"] = header.version
         # Decoding needs some size; with none known, accept any coordinate and infer later.
         kwargs["dimensions_fallback"] = sensor_size or recorded or (65535, 65535)
+    elif suffix == ".aedat4":
+        check_aedat4_container(path)  # what would abort faery's decoder is refused here
     try:
         decoder = faery.events_stream_from_file(path, **kwargs)  # type: ignore[arg-type]
         if suffix != ".raw":
@@ -183,8 +197,16 @@ def write_faery(
     """
     suffix = target.suffix.lower()
     first: list[int] = []
+    upstream: list[BaseException] = []  # an error of the caller's chunks, not of faery
 
     def converted() -> Iterator[np.ndarray]:
+        try:
+            yield from _converted()
+        except BaseException as exc:
+            upstream.append(exc)
+            raise
+
+    def _converted() -> Iterator[np.ndarray]:
         for events in chunks:
             if events.size == 0:
                 continue
@@ -215,9 +237,9 @@ def write_faery(
             file_type={".raw": "evt", ".aedat4": "aedat", ".es": "es", ".csv": "csv"}[suffix],
             **kwargs,  # type: ignore[arg-type]
         )
-    except EventFileError:
-        raise
     except BaseException as exc:
-        if not _faery_failed(exc):
+        if upstream:  # raised where it arose (a method's bug stays a bug, not a file error)
+            raise upstream[0] from None
+        if isinstance(exc, EventFileError) or not _faery_failed(exc):
             raise
         raise EventFileError(target, f"cannot write ({exc})") from None

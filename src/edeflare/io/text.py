@@ -2,7 +2,7 @@
 
 - ``.npz``: arrays ``t`` (int64 µs), ``x``, ``y``, ``p`` (1 = ON, 0 = OFF;
   -1/+1 and bool accepted on reading) and scalars ``width``, ``height``;
-  loaded with ``allow_pickle=False``.
+  read and written streaming (one chunk of events in memory), never pickled.
 - ``.txt``: one event per line, ``t x y p`` separated by spaces. An optional
   first line ``W H`` gives the sensor size (the rpg/ESIM convention). ``t`` is
   integer microseconds; if it is written with a decimal point it is read as
@@ -18,10 +18,15 @@ a fixed column order.
 
 from __future__ import annotations
 
+import contextlib
 import io
+import shutil
+import tokenize
 import zipfile
+import zlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
@@ -33,56 +38,154 @@ __all__ = ["open_npz", "open_text", "write_npz", "write_txt"]
 _TEXT_CHUNK_LINES = 1 << 20
 
 
+_NPZ_CHUNK = 1 << 20  # events per chunk when streaming an archive
+_NPZ_FIELDS = ("t", "x", "y", "p")
+# What a corrupt archive raises from zipfile, zlib or numpy's header parser.
+# numpy parses a .npy header with tokenize and ast: TokenError, SyntaxError.
+_ZIP_ERRORS = (
+    OSError,
+    ValueError,
+    EOFError,
+    SyntaxError,
+    tokenize.TokenError,
+    zipfile.BadZipFile,
+    zlib.error,
+    NotImplementedError,
+)
+
+
+def _npy_header(path: Path, member: IO[bytes], name: str) -> tuple[tuple[int, ...], np.dtype]:
+    version = np.lib.format.read_magic(member)
+    if version == (1, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_1_0(member)
+    elif version == (2, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_2_0(member)
+    else:
+        raise EventFileError(path, f"npz array {name!r} has unsupported .npy version {version}")
+    if dtype.hasobject or dtype.kind not in "biuf" or (fortran and len(shape) > 1):
+        raise EventFileError(path, f"npz array {name!r} has dtype {dtype}, not numbers")
+    return tuple(shape), dtype
+
+
 def open_npz(
     path: Path, sensor_size: SensorSize | None = None
 ) -> tuple[SensorSize | None, Iterator[np.ndarray]]:
-    """Open an ``.npz`` archive: ``(recorded sensor size or None, one-chunk iterator)``."""
+    """Open an ``.npz`` archive: ``(recorded sensor size or None, chunk iterator)``.
 
-    def load(names: tuple[str, ...]) -> dict[str, np.ndarray]:
-        try:
-            with np.load(path, allow_pickle=False) as archive:
-                missing = [k for k in "txyp" if k not in archive.files]
-                if missing:
-                    raise EventFileError(
-                        path, f"npz lacks arrays {missing} (has {sorted(archive.files)})"
-                    )
-                return {k: archive[k] for k in names if k in archive.files}
-        except EventFileError:
-            raise
-        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-            raise EventFileError(path, f"not a readable npz archive ({exc})") from None
-
-    meta = load(("width", "height"))
+    The arrays are decompressed and decoded ``2**20`` events at a time, so a
+    large archive never loads whole.
+    """
     recorded = None
-    if "width" in meta and "height" in meta:
-        recorded = (int(meta["width"]), int(meta["height"]))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = {n.removesuffix(".npy") for n in archive.namelist()}
+            missing = [k for k in _NPZ_FIELDS if k not in names]
+            if missing:
+                raise EventFileError(path, f"npz lacks arrays {missing} (has {sorted(names)})")
+            if "width" in names and "height" in names:
+                dims = []
+                for k in ("width", "height"):
+                    with archive.open(f"{k}.npy") as member:
+                        value = np.lib.format.read_array(member, allow_pickle=False)
+                    if value.size != 1 or value.dtype.kind not in "iu":
+                        raise EventFileError(path, f"npz {k} is not one integer: {value!r}")
+                    dims.append(int(value.reshape(())))
+                recorded = (dims[0], dims[1])
+    except EventFileError:
+        raise
+    except _ZIP_ERRORS as exc:
+        raise EventFileError(path, f"not a readable npz archive ({exc})") from None
 
     def chunks() -> Iterator[np.ndarray]:
-        arrays = load(("t", "x", "y", "p"))
         try:
-            yield make_events(arrays["t"], arrays["x"], arrays["y"], arrays["p"])
-        except EventsError as exc:
-            raise EventFileError(path, str(exc)) from None
+            with contextlib.ExitStack() as stack:
+                archive = stack.enter_context(zipfile.ZipFile(path))
+                members, dtypes, lengths = [], [], set()
+                for k in _NPZ_FIELDS:
+                    member = stack.enter_context(archive.open(f"{k}.npy"))
+                    shape, dtype = _npy_header(path, member, k)
+                    if len(shape) != 1:
+                        raise EventFileError(path, f"npz array {k!r} has shape {shape}, not 1-D")
+                    members.append(member)
+                    dtypes.append(dtype)
+                    lengths.add(shape[0])
+                if len(lengths) != 1:
+                    raise EventFileError(
+                        path, f"npz arrays t, x, y, p differ in length: {sorted(lengths)}"
+                    )
+                remaining = lengths.pop()
+                while remaining:
+                    n = min(remaining, _NPZ_CHUNK)
+                    arrays = []
+                    for k, member, dtype in zip(_NPZ_FIELDS, members, dtypes, strict=True):
+                        data = member.read(n * dtype.itemsize)
+                        if len(data) != n * dtype.itemsize:
+                            raise EventFileError(path, f"npz array {k!r} is truncated")
+                        arrays.append(np.frombuffer(data, dtype=dtype))
+                    remaining -= n
+                    try:
+                        events = make_events(*arrays)
+                    except EventsError as exc:
+                        raise EventFileError(path, str(exc)) from None
+                    yield events
+        except EventFileError:
+            raise
+        except _ZIP_ERRORS as exc:
+            problem = f"corrupt npz archive ({type(exc).__name__}: {exc})"
+            raise EventFileError(path, problem) from None
 
     return recorded, chunks()
+
+
+# A fixed member date: the archive's bytes depend on the events only (reruns are identical).
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+
+def _zip_member(archive: zipfile.ZipFile, name: str) -> IO[bytes]:
+    info = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
+    info.compress_type = zipfile.ZIP_DEFLATED
+    return archive.open(info, "w", force_zip64=True)
 
 
 def write_npz(
     tmp_path: Path, chunks: Iterable[np.ndarray], sensor_size: SensorSize, *, target: Path
 ) -> None:
-    """Write ``t, x, y, p, width, height`` to a compressed ``.npz``."""
-    parts = [c for c in chunks if c.size]
-    events = np.concatenate(parts) if parts else np.zeros(0, EVENT_DTYPE)
-    with open(tmp_path, "wb") as f:
-        np.savez_compressed(
-            f,
-            t=events["t"],
-            x=events["x"],
-            y=events["y"],
-            p=events["p"],
-            width=np.int64(sensor_size[0]),
-            height=np.int64(sensor_size[1]),
-        )
+    """Write ``t, x, y, p, width, height`` to a compressed ``.npz``, streaming.
+
+    The fields are spooled to raw files beside ``tmp_path`` while the chunks
+    arrive (the ``.npy`` headers need the final length), then deflated into
+    the archive block by block: memory stays bounded by one chunk. The
+    archive reads with :func:`numpy.load` like one from
+    :func:`numpy.savez_compressed`.
+    """
+    spools = {k: tmp_path.with_name(f"{tmp_path.name}.{k}") for k in _NPZ_FIELDS}
+    n = 0
+    try:
+        with contextlib.ExitStack() as stack:
+            files = {k: stack.enter_context(open(v, "wb")) for k, v in spools.items()}
+            for events in chunks:
+                if events.size:
+                    for k in _NPZ_FIELDS:
+                        files[k].write(np.ascontiguousarray(events[k]).tobytes())
+                    n += events.size
+        with zipfile.ZipFile(tmp_path, "w", allowZip64=True) as archive:
+            for k in _NPZ_FIELDS:
+                header = {
+                    "descr": np.lib.format.dtype_to_descr(EVENT_DTYPE[k]),
+                    "fortran_order": False,
+                    "shape": (n,),
+                }
+                with _zip_member(archive, f"{k}.npy") as member, open(spools[k], "rb") as raw:
+                    np.lib.format.write_array_header_1_0(member, header)
+                    shutil.copyfileobj(raw, member, 1 << 22)
+                spools[k].unlink()
+            for k, value in (("width", sensor_size[0]), ("height", sensor_size[1])):
+                with _zip_member(archive, f"{k}.npy") as member:
+                    np.lib.format.write_array(member, np.asarray(value, dtype=np.int64))
+    finally:
+        for spool in spools.values():
+            with contextlib.suppress(FileNotFoundError):
+                spool.unlink()
 
 
 def _columns_from_header(path: Path, header: str) -> tuple[list[int], SensorSize | None]:
