@@ -3,12 +3,17 @@
 - ``rng``: a seeded :class:`numpy.random.Generator` (seed 1234), fresh per test.
 - ``real_data`` / ``golden_data``: the shared real recordings and golden files
   beside the repository (``../shared/data/``); tests using them skip cleanly
-  when the folder is absent (as it is for a user who installs the package).
+  when the folder is absent (as it is for a user who installs the package),
+  and FAIL when the environment variable ``CI`` is set: CI must not pass
+  without testing. :func:`require` does the same for any other requirement
+  (:func:`browser` finds Chromium on ``PATH``).
 - :func:`random_events`: a sorted random stream of :data:`EVENT_DTYPE`.
 """
 
 from __future__ import annotations
 
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -30,20 +35,41 @@ settings.load_profile("edeflare")
 SHARED_DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 
 
+ON_CI = bool(os.environ.get("CI"))
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+
+def require(missing: str) -> None:
+    """Skip the calling test for want of ``missing``; under CI (``$CI`` set), fail it."""
+    if ON_CI:
+        pytest.fail(f"{missing} (CI is set: required, not skipped)", pytrace=False)
+    pytest.skip(missing)
+
+
 def real_data_dir() -> Path:
-    """``../shared/data/real`` (resolved); skip the calling test when it is absent."""
+    """``../shared/data/real`` (resolved); skip the calling test when absent (fail under CI)."""
     path = (SHARED_DATA / "real").resolve()
     if not path.is_dir():
-        pytest.skip("shared real recordings absent")
+        require("shared real recordings absent")
     return path
 
 
 def golden_data_dir() -> Path:
-    """``../shared/data/golden`` (resolved); skip the calling test when it is absent."""
+    """``../shared/data/golden`` (resolved); skip the calling test when absent (fail under CI)."""
     path = (SHARED_DATA / "golden").resolve()
     if not path.is_dir():
-        pytest.skip("shared golden files absent")
+        require("shared golden files absent")
     return path
+
+
+def browser() -> str:
+    """Path of a Chromium found on ``PATH``; skip the calling test when none (fail under CI)."""
+    for name in BROWSERS:
+        found = shutil.which(name)
+        if found:
+            return found
+    require(f"no browser on PATH (looked for {', '.join(BROWSERS)}; apt install chromium)")
+    raise AssertionError("unreachable")
 
 
 @pytest.fixture

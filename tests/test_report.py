@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import subprocess
 from html.parser import HTMLParser
 from pathlib import Path
@@ -14,6 +13,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from conftest import browser
 from edeflare.cli import main
 from edeflare.data.toy import toy_flare_pair
 from edeflare.errors import ParameterError
@@ -28,7 +28,6 @@ SIZE = (96, 72)
 SPAN = {"t_start_us": 0, "t_end_us": 60_000}
 ODD = '<b>A&B</b> "q"'  # a method name that must be escaped
 METHODS = {"raw": "raw", "pfd-b": "pfd-b", ODD: "voxel"}
-CHROMIUM = "/usr/bin/chromium"
 
 
 class _Page(HTMLParser):
@@ -302,11 +301,9 @@ def _colored(pixels: np.ndarray, color: tuple[int, int, int], tol: int = 12) -> 
 def test_report_renders_in_a_headless_browser(built, tmp_path):
     """Debian's chromium takes a screenshot of the page: not blank, event colours visible."""
     _, _, _, page = built
-    if not (os.path.exists(CHROMIUM) and shutil.which(CHROMIUM)):
-        pytest.skip("chromium not installed (apt install chromium)")
     shot = tmp_path / "shot.png"
     command = [
-        CHROMIUM,
+        browser(),
         "--headless",
         "--no-sandbox",
         "--disable-gpu",

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import edeflare
+from conftest import require
 from edeflare.cli import main
 from edeflare.errors import AnnotationError, EdeflareError, EventFileError, ParameterError
 from edeflare.eval.score import (
@@ -332,7 +333,7 @@ def test_cli_errors_are_one_line(recording, tmp_path, capsys):
 def _real(name):
     path = REAL / name
     if not path.exists():
-        pytest.skip(f"real recording {path} not available")
+        require(f"real recording {path} not available")
     return path
 
 

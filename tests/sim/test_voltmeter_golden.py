@@ -16,6 +16,8 @@ import pytest
 from scipy import stats
 from voltmeter_stats import RunStats, load_video, simulate_runs
 
+from conftest import require
+
 RAMP_EVENTS = 539_760  # 89,960 pixels x 6 ON events, in every run
 
 
@@ -23,7 +25,7 @@ RAMP_EVENTS = 539_760  # 89,960 pixels x 6 ON events, in every run
 def folder(golden_data: Path) -> Path:
     path = golden_data / "voltmeter"
     if not (path / "README.md").is_file():
-        pytest.skip("golden DVS-Voltmeter files absent")
+        require("golden DVS-Voltmeter files absent")
     return path
 
 
