@@ -114,7 +114,7 @@ register_model(
         "mask.lite",
         FlareMaskNet,
         {"bins": 8, "scale": 4, "features": (8, 16, 32, 64), "groups": 4},
-        "flare mask on 4x4-pixel cells, decided per event (the default: real-time on CPU)",
+        "flare mask on 4x4-pixel cells, decided per event at full resolution",
     )
 )
 register_model(

@@ -1,0 +1,154 @@
+"""End-to-end de-flaring speed: read, window, network, decode, write, as ``edeflare deflare``.
+
+Each case writes a synthetic recording (uniform random events, a night-driving
+density: 0.1, 1 or 3 M events/s over 1 s) as DSEC HDF5, then times
+:func:`edeflare.deflare.deflare_file` (what ``edeflare deflare`` runs)
+in a fresh subprocess (model loading included), and reports
+
+- the real-time factor (processing time / recording time; at most 1 is real
+  time),
+- the streaming latency: the mean time from a window's last event (its end)
+  to its output, i.e. the compute time per 20 ms window when the stream is
+  fed live (``latency_ms``),
+- the peak resident memory of the process (``peak_rss_mib``).
+
+The reference in the same run is the previous bundled model (``unet2d.lite``
+on full-resolution voxel grids, committed before the ``mask`` presets): the
+``speedup`` column is its time over each row's, at the same case. Baselines
+(EFR, PFD-A, PFD-B, and dv-processing's FastDecay where installed) are timed
+on the same files.
+
+Run: ``python benchmarks/bench_realtime.py [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from _common import random_events, report
+
+_CHILD = r"""
+import json, resource, sys, time
+t0 = time.perf_counter()
+from edeflare.deflare import deflare_file
+src, dst, method, weights = sys.argv[1:5]
+params = {"weights": weights} if weights else {}
+stats = deflare_file(src, dst, method, params=params, progress=False)
+elapsed = time.perf_counter() - t0
+print(json.dumps({"seconds": elapsed,
+                  "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+_LATENCY = r"""
+import json, sys, time
+import numpy as np
+from edeflare.io import open_events
+from edeflare.models.infer import ModelDeflarer
+src, weights = sys.argv[1:3]
+d = ModelDeflarer(weights, batch_windows=1, device="cpu")
+with open_events(src) as s:
+    ev, size = s.read(), s.sensor_size
+w = d.window_us
+t0 = int(ev["t"][0]) // w * w
+starts = np.arange(t0, int(ev["t"][-1]) + 1, w)
+idx = np.searchsorted(ev["t"], np.append(starts, starts[-1] + w))
+wins = [(int(s), ev[idx[i]:idx[i + 1]]) for i, s in enumerate(starts)]
+next(d.windows(wins[:1], size))  # warm-up
+lat = []
+for win in wins:
+    t = time.perf_counter()
+    next(d.windows([win], size))
+    lat.append(time.perf_counter() - t)
+lat_ms = 1000 * np.asarray(lat)
+print(json.dumps({"latency_ms": float(lat_ms.mean()), "p95_ms": float(np.percentile(lat_ms, 95))}))
+"""
+
+
+def _run(code: str, *args: str) -> dict[str, float]:
+    out = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, check=True
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _weights(tmp: Path, preset: str) -> str:
+    """Bundled weights for the preset if shipped, else an untrained (same-speed) model."""
+    from edeflare.models import create_model
+    from edeflare.models.infer import bundled_weights
+    from edeflare.models.weights import ModelCard, load_model, save_model
+
+    for name in ("default", "fast", "previous"):
+        try:
+            path = bundled_weights(name)
+        except Exception:
+            continue
+        if load_model(path, "cpu")[1].preset == preset:
+            return str(path)
+    path = tmp / f"{preset}.safetensors"
+    save_model(path, create_model(preset), ModelCard(preset=preset))
+    return str(path)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="640x480 at 1 M ev/s only")
+    args = parser.parse_args()
+    from edeflare.io import write_events
+
+    cases = (
+        [((640, 480), 1_000_000)]
+        if args.quick
+        else [
+            ((640, 480), 100_000),
+            ((640, 480), 1_000_000),
+            ((640, 480), 3_000_000),
+            ((1280, 720), 1_000_000),
+        ]
+    )
+    rows: list[dict[str, object]] = []
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        models = {p: _weights(tmp, p) for p in ("unet2d.lite", "mask.lite", "mask.fast")}
+        methods: list[tuple[str, str, str]] = [
+            (f"model {p}", "model", w) for p, w in models.items()
+        ] + [(m, m, "") for m in ("efr", "pfd-a", "pfd-b", "dv-fastdecay")]
+        for size, rate in cases:
+            src = tmp / f"in_{size[0]}_{rate}.h5"
+            write_events(src, random_events(rate, size, 0, 1_000_000, seed=1), size)
+            ref = None
+            for label, method, weights in methods:
+                dst = tmp / "out.h5"
+                try:
+                    r = _run(_CHILD, str(src), str(dst), method, weights)
+                except subprocess.CalledProcessError as exc:
+                    print(f"skip {label}: {exc.stderr.strip().splitlines()[-1]}", file=sys.stderr)
+                    continue
+                dst.unlink(missing_ok=True)
+                if label == "model unet2d.lite":
+                    ref = r["seconds"]
+                row: dict[str, object] = {
+                    "sensor": f"{size[0]}x{size[1]}",
+                    "Mev/s": rate / 1e6,
+                    "method": label,
+                    "rtf": r["seconds"] / 1.0,
+                    "speedup": (ref / r["seconds"]) if ref else "",
+                    "peak_rss_mib": r["peak_rss_mib"],
+                }
+                if method == "model":
+                    row.update(_run(_LATENCY, str(src), weights))
+                rows.append(row)
+                print(row, file=sys.stderr)
+    report(
+        "realtime",
+        rows,
+        ["sensor", "Mev/s", "method", "rtf", "speedup", "latency_ms", "p95_ms", "peak_rss_mib"],
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,52 @@
+"""The mask presets: the per-event decision equals the dense gate it is trained through."""
+
+import numpy as np
+import pytest
+import torch
+
+from edeflare.events import make_events
+from edeflare.models import create_model
+from edeflare.models.flaremask import FlareMaskNet, event_features, event_keep_mask
+from edeflare.voxel import encode
+
+
+def _events(n, size, seed):
+    rng = np.random.default_rng(seed)
+    w, h = size
+    # distinct pixels, so no cell holds cancelling ON/OFF events (the documented condition)
+    pix = rng.choice(w * h, n, replace=False)
+    t = np.sort(rng.integers(0, 20_000, n))
+    return make_events(t, pix % w, pix // w, rng.integers(0, 2, n))
+
+
+@pytest.mark.parametrize("scale", [4, 8])
+def test_event_features_equal_the_networks_features(scale):
+    size = (37, 29)
+    ev = _events(300, size, 1)
+    net = FlareMaskNet(bins=8, scale=scale, features=(8, 16), groups=4)
+    grid = torch.from_numpy(encode(ev, size, 0, 20_000, 8))[None, None]
+    expected = net.features(grid)[0].numpy()
+    got = event_features(ev, size, 0, 20_000, 8, scale)
+    np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-6)
+
+
+def test_per_event_decision_equals_the_dense_gate():
+    torch.manual_seed(0)
+    size = (45, 31)
+    net = FlareMaskNet(bins=8, scale=4, features=(8, 16), groups=4).eval()
+    torch.nn.init.normal_(net.final.weight, std=2.0)  # a non-trivial mask
+    ev = _events(500, size, 2)
+    grid = torch.from_numpy(encode(ev, size, 0, 20_000, 8))[None, None]
+    with torch.no_grad():
+        dense = net(grid)[0, 0].numpy()
+        logits = net.logits(net.features(grid))[0].numpy()
+    keep = event_keep_mask(logits, ev, 0, 20_000, 4)
+    b = ev["t"] * 8 // 20_000
+    gate = np.abs(dense[b, ev["y"], ev["x"]])  # one event per cell: the gate itself
+    assert 0 < keep.sum() < ev.size  # the mask really drops some and keeps some
+    np.testing.assert_array_equal(keep, gate > 0.5)
+
+
+def test_mask_presets_are_small():
+    assert sum(p.numel() for p in create_model("mask.lite").parameters()) == 150_096
+    assert create_model("mask.fast").scale == 8
