@@ -1,0 +1,57 @@
+"""Sparse flare sensing: drop each flare-origin input event with prob 1-q (q per sequence)."""
+import sys, json
+from pathlib import Path
+import numpy as np, h5py
+from edeflare.io.dsec import read_dsec
+from edeflare.io.dsec import write_dsec_groups
+
+def key(ev):
+    return (ev["t"].astype(np.int64) << 24) ^ (ev["x"].astype(np.int64) << 12) ^ (ev["y"].astype(np.int64) << 1) ^ ev["p"].astype(np.int64)
+
+src, dst = Path(sys.argv[1]), Path(sys.argv[2])
+qlo, qhi = 0.02, 0.6
+for split in ("train", "test"):
+    (dst / split).mkdir(parents=True, exist_ok=True)
+    for f in sorted((src / split).glob("*.h5")):
+        out = dst / split / f.name
+        if out.exists():
+            continue
+        with h5py.File(f, "r") as h:
+            attrs = dict(h.attrs)
+            size = tuple(int(v) for v in h.attrs["sensor_size"]) if "sensor_size" in h.attrs else None
+        streams = {g: read_dsec(f, g)[0] for g in ("input", "gt", "flare", "light")}
+        light = streams.pop("light")
+        idx = int(attrs["index"])
+        rng = np.random.default_rng([4242, idx])
+        q = float(np.exp(rng.uniform(np.log(qlo), np.log(qhi))))
+        inp = streams["input"]
+        isflare = np.isin(key(inp), key(streams["flare"]))
+        # the source itself stays dense: flare events within 3 px of a light event of the
+        # same 10 ms window are the source seen through the lens, not scattered light
+        win = (inp["t"] - int(attrs["t_start_us"])) // 10_000
+        lw = (light["t"] - int(attrs["t_start_us"])) // 10_000
+        W, H = size
+        near = np.zeros(inp.size, bool)
+        from scipy import ndimage
+        for k in np.unique(win):
+            m = np.zeros((H, W), bool)
+            sel = lw == k
+            m[light["y"][sel], light["x"][sel]] = True
+            m = ndimage.binary_dilation(m, iterations=1)
+            ii = np.nonzero(win == k)[0]
+            near[ii] = m[inp["y"][ii], inp["x"][ii]]
+        drop = isflare & ~near & (rng.random(inp.size) >= q)
+        kept = inp[~drop]
+        # a log photoreceptor does not clip: the source's own events are recorded even where
+        # the 8-bit flare rendering saturates, so light events missing from the input return
+        missing = light[~np.isin(key(light), key(kept))]
+        merged = np.concatenate([kept, missing])
+        merged = merged[np.argsort(merged["t"], kind="stable")]
+        streams["input"] = merged
+        # the target of a keep-only de-flarer: the input's true events (scene and source)
+        streams["gt_full"] = streams["gt"]
+        streams["gt"] = merged[np.isin(key(merged), key(np.concatenate([streams["gt"], light])))]
+        attrs["flare_detection_q"] = q
+        attrs.pop("sensor_size", None)
+        write_dsec_groups(out, streams, size, attrs)
+        print(f.name, f"q={q:.3f}", int(isflare.sum()), int(drop.sum()), missing.size, flush=True)
