@@ -5,8 +5,9 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import conftest
 import pytest
+
+import conftest
 
 CI_RUN = Path(__file__).resolve().parents[1] / ".ci" / "run"
 

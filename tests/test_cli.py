@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -12,7 +13,8 @@ import pytest
 from PIL import Image
 
 from conftest import random_events, same_events
-from edeflare.cli import main
+from edeflare.cli import EXIT_INTERNAL, main
+from edeflare.errors import EventFileError
 from edeflare.events import make_events
 from edeflare.io import read_events, write_events
 
@@ -135,8 +137,47 @@ def test_demo_writes_everything(tmp_path, capsys):
     raw, _ = read_events(out / "raw.h5")
     assert raw.size == inp.size  # the raw row is the input itself
     table = json.loads((out / "metrics.json").read_text())
-    assert {"raw", "voxel", "efr", "pfd-a", "pfd-b"} <= set(table["values"])
+    values = table["values"]
+    assert set(values) == {"raw", "voxel", "efr", "pfd-a", "pfd-b", "E-DeflareNet"}
+    for name, row in values.items():  # every metric a real number in its range
+        assert all(math.isfinite(v) for v in row.values()), name
+        assert 0 <= row["r_f1"] <= 1 and row["chamfer"] > 0 and row["mse"] >= 0
+        assert read_events(out / f"{name}.h5").events.size == events[name]
+    # The scene has flare to remove: the bundled model beats the input on the paper's metrics.
+    model, flare = values["E-DeflareNet"], values["raw"]
+    assert model["chamfer"] < 0.9 * flare["chamfer"] and model["mse"] < 0.8 * flare["mse"]
+    assert model["r_f1"] > flare["r_f1"]
+    assert events["pfd-b"] < events["input"] and events["efr"] < events["input"]
+    assert "| E-DeflareNet |" in (out / "metrics.md").read_text()
+    assert summary["scene"]["sensor_size"] == [346, 260]
+    assert not [p.name for p in out.iterdir() if ".partial" in p.name]
     assert str(out) in capsys.readouterr().out
+
+
+def test_demo_fails_loudly_without_its_model(tmp_path, monkeypatch, capsys):
+    import edeflare.models.infer as infer
+
+    def missing():
+        raise EventFileError("edeflare/assets/model.safetensors", "no such file")
+
+    monkeypatch.setattr(infer, "bundled_weights", missing)
+    assert main(["demo", "--out", str(tmp_path / "demo")]) == 1
+    err = capsys.readouterr().err
+    assert "needs the bundled E-DeflareNet weights" in err and err.count("\n") == 1
+    assert not (tmp_path / "demo" / "metrics.json").exists()
+
+
+def test_internal_errors_show_the_traceback_and_ask_for_a_report(monkeypatch, capsys):
+    import edeflare.cli.info as info
+
+    def broken(args):
+        raise IndexError("index 5 is out of bounds")
+
+    monkeypatch.setattr(info, "run", broken)
+    assert main(["info", "any.h5"]) == EXIT_INTERNAL
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "IndexError: index 5 is out of bounds" in err
+    assert "this is a bug" in err.splitlines()[-1] and "report it" in err
 
 
 @pytest.mark.parametrize(
@@ -165,11 +206,13 @@ def test_convert_error_leaves_no_output(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv"]
 
 
-def test_bad_option_values_exit_2(capsys):
+def test_bad_option_values_are_one_line_exit_1(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["info", "a.h5", "--sensor-size", "640by480"])
-    assert exc.value.code == 2
-    assert "640x480" in capsys.readouterr().err
+    assert exc.value.code == 1
+    err = capsys.readouterr().err
+    assert "640x480" in err and len(err.strip().splitlines()) == 1
+    assert err.startswith("edeflare info: error: ")
 
 
 def test_console_script_runs_without_traceback(tmp_path):

@@ -382,5 +382,5 @@ def test_cli_deflare_option_errors(tmp_path, stream, capsys, argv, message):
 def test_cli_deflare_unknown_method_is_a_usage_error(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["deflare", "a.h5", "b.h5", "-m", "magic"])
-    assert exc.value.code == 2
+    assert exc.value.code == 1
     assert "invalid choice: 'magic'" in capsys.readouterr().err

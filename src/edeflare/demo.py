@@ -20,6 +20,7 @@ from tqdm import tqdm
 from .errors import EdeflareError
 from .events import slice_time
 from .io import write_events
+from .io._atomic import atomic_path
 from .viz import event_frame, grid, save_animation, save_image, voxel_montage
 from .voxel import encode
 
@@ -31,17 +32,29 @@ DEMO_SEED = 20261122
 
 
 def _demo_methods() -> dict[str, Any]:
-    """Rows of the demo: the baselines, and the bundled model when the package ships one."""
+    """Rows of the demo: the baselines and the bundled model.
+
+    Without the bundled weights the demo fails loudly (an installation
+    problem), rather than showing a table without its main row.
+    """
     from .deflare import create_method
     from .models.infer import bundled_weights
 
     methods = {name: create_method(name) for name in ("raw", "voxel", "efr", "pfd-a", "pfd-b")}
     try:
         bundled_weights()
-    except EdeflareError:
-        return methods
+    except EdeflareError as exc:
+        raise EdeflareError(
+            f"the demo needs the bundled E-DeflareNet weights, which this installation lacks "
+            f"({exc}); reinstall edeflare"
+        ) from None
     methods["E-DeflareNet"] = create_method("model")
     return methods
+
+
+def _write_text(path: Path, text: str) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 def run_demo(
@@ -51,6 +64,9 @@ def run_demo(
     progress: bool = True,
 ) -> dict[str, str]:
     """Simulate a flare scene, de-flare it with every method, and write pictures and metrics.
+
+    Every file is written atomically; without the bundled model it raises
+    :class:`~edeflare.errors.EdeflareError` before writing anything.
 
     The scene is one 100 ms sequence of the ``eflare-mini`` recipe (346x260,
     physics-driven flare over a synthetic night street) drawn with the dataset
@@ -108,8 +124,8 @@ def run_demo(
     save_animation(paths["animation"], frames, fps=4)
     first = slice_time(inp, start, start + window)
     save_image(paths["voxels"], voxel_montage(encode(first, size, start, window), ncols=4))
-    (out / "metrics.md").write_text(table.to_markdown())
-    (out / "metrics.json").write_text(table.to_json())
+    _write_text(out / "metrics.md", table.to_markdown())
+    _write_text(out / "metrics.json", table.to_json())
     summary = {
         "scene": {
             "recipe": recipe.name,
@@ -125,5 +141,5 @@ def run_demo(
         },
         **{k: str(v) for k, v in paths.items()},
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    _write_text(out / "summary.json", json.dumps(summary, indent=2))
     return {k: str(v) for k, v in paths.items()}

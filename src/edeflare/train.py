@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import json
 import math
 import os
@@ -220,24 +221,53 @@ def _loader(dataset: PairedWindows, config: TrainConfig, env: _Dist, start: int)
     return zip(range(start, config.iterations), batches, strict=False)
 
 
+def _complete_lines(path: Path) -> str:
+    """The file's text up to its last newline: a line torn by a kill is dropped."""
+    with open(path, newline="") as f:
+        text = f.read()
+    return text[: text.rfind("\n") + 1]
+
+
 def _truncate_csv(path: Path, iteration: int) -> None:
-    """Keep the header and the rows up to ``iteration`` (a resumed run rewrites the rest)."""
+    """Keep the header and the rows up to ``iteration`` (a resumed run rewrites the rest).
+
+    A torn last line (the process was killed while appending it) and any row
+    whose width differs from the header's are dropped.
+    """
     if not path.exists():
         return
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    kept = rows[:1] + [r for r in rows[1:] if r and int(r[0]) <= iteration]
+    rows = list(csv.reader(io.StringIO(_complete_lines(path))))
+    width = len(rows[0]) if rows else 0
+    kept = rows[:1] + [
+        r for r in rows[1:] if len(r) == width and r[0].isdigit() and int(r[0]) <= iteration
+    ]
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         csv.writer(f).writerows(kept)
 
 
 def _append_csv(path: Path, header: Sequence[str], row: Sequence[object]) -> None:
-    new = not path.exists()
-    with open(path, "a", newline="") as f:
-        writer = csv.writer(f)
-        if new:
-            writer.writerow(header)
-        writer.writerow(row)
+    """Append one row (and the header to a new file) in one ``write``, after whole lines only.
+
+    A kill can tear at most the line being written; the next append (or the
+    resume's :func:`_truncate_csv`) starts after the last complete line.
+    """
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    if not path.exists() or path.stat().st_size == 0:
+        writer.writerow(header)
+    else:
+        with open(path, "rb") as f:
+            f.seek(-1, os.SEEK_END)
+            torn = f.read(1) != b"\n"
+        if torn:
+            with atomic_path(path) as tmp:
+                tmp.write_text(_complete_lines(path), newline="")
+    writer.writerow(row)
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    try:
+        os.write(fd, buf.getvalue().encode())
+    finally:
+        os.close(fd)
 
 
 def _save_checkpoint(
@@ -248,10 +278,13 @@ def _save_checkpoint(
     config: TrainConfig,
     best_val_mse: float,
     seconds: float,
+    scaler: torch.amp.GradScaler | None = None,
 ) -> None:
     state = {
         "model": model.state_dict(),
         "optimizer": opt.state_dict(),
+        # AMP's loss scale and its growth tracker: a resumed GPU run continues them exactly.
+        "scaler": scaler.state_dict() if scaler is not None else {},
         "iteration": iteration,
         "config": json.dumps(config.to_dict()),
         "torch_rng": torch.get_rng_state(),
@@ -348,6 +381,7 @@ def train(
     ckpt_path = out / "checkpoint.pt"
     start = 0
     best, elapsed = math.inf, 0.0
+    scaler_state: dict[str, Any] = {}
     if env.main:
         out.mkdir(parents=True, exist_ok=True)
     if ckpt_path.exists():
@@ -369,8 +403,10 @@ def train(
         start = int(state["iteration"])
         best = float(state.get("best_val_mse", math.inf))
         elapsed = float(state.get("seconds", 0.0))
+        scaler_state = state.get("scaler") or {}
     if env.main:
-        (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
+        with atomic_path(out / "config.json") as tmp:
+            tmp.write_text(json.dumps(config.to_dict(), indent=2))
         for name in ("train_log.csv", "val_log.csv"):
             _truncate_csv(out / name, start)
     net = model
@@ -380,6 +416,8 @@ def train(
         )
     use_amp = config.amp and device.type == "cuda"
     scaler = torch.amp.GradScaler("cuda", enabled=use_amp)
+    if use_amp and scaler_state:  # empty when the checkpoint comes from a run without AMP
+        scaler.load_state_dict(scaler_state)
     model.train()
     t0 = time.perf_counter() - elapsed
     bar = tqdm(
@@ -421,7 +459,7 @@ def train(
         if done % config.checkpoint_every == 0 or done == config.iterations:
             if env.main:
                 _save_checkpoint(
-                    ckpt_path, model, opt, done, config, best, time.perf_counter() - t0
+                    ckpt_path, model, opt, done, config, best, time.perf_counter() - t0, scaler
                 )
             if env.world > 1:
                 dist.barrier()

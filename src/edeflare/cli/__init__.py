@@ -1,15 +1,18 @@
 """The ``edeflare`` command line: one module per command, each a thin layer over the library.
 
 Each command module has ``add_parser(sub, **kwargs)`` (register its
-sub-parser, with ``set_defaults(func=run)``) and ``run(args) -> int``. User
-errors print one line (``edeflare: error: ...``) to stderr and exit 1;
-nothing is half-written.
+sub-parser, with ``set_defaults(func=run)``) and ``run(args) -> int``.
+
+Exit codes: 0 success; 1 a user error (a bad option, file or value: one line
+``edeflare: error: ...`` on stderr, nothing half-written); 130 interrupted;
+70 an internal error (a bug: the traceback, then a line asking to report it).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import traceback
 from collections.abc import Sequence
 
 from .._version import __version__
@@ -29,7 +32,16 @@ from . import (
     view,
 )
 
-__all__ = ["build_parser", "main"]
+__all__ = ["EXIT_INTERNAL", "build_parser", "main"]
+
+EXIT_INTERNAL = 70  # EX_SOFTWARE of sysexits.h: a bug, not the user's input
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line and exit 1, like every user error."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(1, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 # Order of appearance in --help.
 COMMANDS = (
@@ -50,7 +62,7 @@ COMMANDS = (
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``edeflare`` command."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="edeflare",
         description="Remove lens flare from event-camera data (E-Deflare).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
@@ -73,6 +85,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("edeflare: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:  # the system refused: a full disk, a folder without permission
+        print(f"edeflare: error: {exc}", file=sys.stderr)
+        return 1
+    except Exception:
+        traceback.print_exc()
+        print(
+            f"edeflare: internal error in 'edeflare {args.command}' (edeflare {__version__}): "
+            "this is a bug, not a problem with your input. Please report it with the "
+            "traceback above and the command you ran.",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -69,12 +69,23 @@ _KNOWN_FILTERS = {1, 2, 3, 4, 5, 6, _BLOSC, 32004, 32008, 32015, 32026}
 
 
 def _check_chunks(path: Path, name: str, d: h5py.Dataset, raw: Any) -> None:
-    """Refuse a dataset whose filters or Blosc chunk headers would crash the decoder.
+    """Refuse a dataset whose shape, filters or Blosc chunk headers would crash the decoder.
 
-    Blosc trusts its parameters (type size, chunk bytes) and each chunk's
-    16-byte header; corrupt ones make it read or write out of bounds and
-    kill the process (SIGSEGV), which no Python code can catch.
+    A corrupt shape asks for terabytes (MemoryError). Blosc trusts its
+    parameters (type size, chunk bytes) and each chunk's 16-byte header;
+    corrupt ones make it read or write out of bounds and kill the process
+    (SIGSEGV), which no Python code can catch.
     """
+    if len(d.shape) != 1:
+        raise EventFileError(path, f"dataset {name!r} has shape {d.shape}, not 1-D")
+    length = int(d.shape[0])
+    file_size = raw.seek(0, os.SEEK_END)
+    if d.chunks is None:
+        if length * d.dtype.itemsize > file_size:
+            raise EventFileError(path, f"dataset {name!r}: {length} values do not fit the file")
+    elif length and d.id.get_num_chunks() * d.chunks[0] < length:
+        # Writers allocate every chunk; a length beyond them is a corrupt shape.
+        raise EventFileError(path, f"dataset {name!r}: length {length} exceeds its stored chunks")
     plist = d.id.get_create_plist()
     blosc = False
     for i in range(plist.get_nfilters()):
@@ -92,10 +103,9 @@ def _check_chunks(path: Path, name: str, d: h5py.Dataset, raw: Any) -> None:
                 )
     if not blosc:
         return
-    size = raw.seek(0, os.SEEK_END)
     for i in range(d.id.get_num_chunks()):
         info = d.id.get_chunk_info(i)
-        if info.size < 16 or info.byte_offset + info.size > size:
+        if info.size < 16 or info.byte_offset + info.size > file_size:
             raise EventFileError(path, f"dataset {name!r}: chunk {i} lies outside the file")
         if info.filter_mask:
             continue  # stored without Blosc
