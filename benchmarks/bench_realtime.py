@@ -51,8 +51,8 @@ from edeflare.io import open_events
 from edeflare.models.infer import ModelDeflarer
 src, weights = sys.argv[1:3]
 d = ModelDeflarer(weights, batch_windows=1, device="cpu")
-with open_events(src) as s:
-    ev, size = s.read(), s.sensor_size
+s = open_events(src)
+ev, size = s.read(), s.sensor_size
 w = d.window_us
 t0 = int(ev["t"][0]) // w * w
 starts = np.arange(t0, int(ev["t"][-1]) + 1, w)
