@@ -78,16 +78,17 @@ def test_convert_rectangle_crop_and_time_range(small_h5, tmp_path):
         "--crop",
         "10,5,20,10",
         "--start-ms",
-        "1020",
+        "20",
         "--end-ms",
-        "1050",
+        "50",
     ]
     assert main(argv) == 0
     got, size = read_events(out)
     t = events["t"]
+    t0 = t[0]  # times are relative to the recording's first event
     keep = (
-        (t >= 1_020_000)
-        & (t < 1_050_000)
+        (t >= t0 + 20_000)
+        & (t < t0 + 50_000)
         & (events["x"] >= 10)
         & (events["x"] < 30)
         & (events["y"] >= 5)
@@ -178,6 +179,40 @@ def test_internal_errors_show_the_traceback_and_ask_for_a_report(monkeypatch, ca
     err = capsys.readouterr().err
     assert "Traceback" in err and "IndexError: index 5 is out of bounds" in err
     assert "this is a bug" in err.splitlines()[-1] and "report it" in err
+
+
+@pytest.mark.filterwarnings("default")
+@pytest.mark.parametrize("suffix", [".h5", ".csv"])
+def test_view_and_convert_times_are_relative_to_the_recording(tmp_path, capsys, suffix):
+    """A recording starting at 11.2 s: --start-ms 50 means 11.25 s; 5000 is past its end."""
+    t = np.arange(11_200_000, 11_400_000, 100)
+    path = tmp_path / f"rec{suffix}"
+    write_events(path, make_events(t, t % 7, t % 5, t % 2), (8, 8))
+    out = tmp_path / "cut.h5"
+    assert main(["convert", str(path), str(out), "--start-ms", "50", "--end-ms", "60"]) == 0
+    got = read_events(out).events["t"]
+    assert got[0] == 11_250_000 and got[-1] == 11_259_900 and got.size == 100
+    assert "warning" not in capsys.readouterr().err
+    assert main(["convert", str(path), str(out), "--start-ms", "5000"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("edeflare: warning: ") and err.count("\n") == 1
+    assert "5000 ms on lies outside the recording" in err and "0-199.9 ms" in err
+    png = tmp_path / "v.png"
+    assert main(["view", str(path), "-o", str(png), "--start-ms", "40", "--count", "2"]) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err and "wrote 2 window(s)" in captured.out
+    with Image.open(png) as im:
+        assert np.asarray(im.convert("RGB")).std() > 0  # events drawn
+    assert main(["view", str(path), "-o", str(png), "--start-ms", "5000"]) == 0
+    assert "the window 5000-5020 ms lies outside the recording" in capsys.readouterr().err
+
+
+def test_view_and_convert_help_say_times_are_relative(capsys):
+    for command in ("view", "convert"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert "relative to the recording's start" in text and "not absolute" in text
 
 
 @pytest.mark.parametrize(

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
+import warnings
 from collections.abc import Sequence
 
 from .._version import __version__
@@ -60,6 +61,11 @@ COMMANDS = (
 )
 
 
+def _show_warning(message: Warning | str, *args: object, **kwargs: object) -> None:
+    """Warnings at the command line: one line each, ``edeflare: warning: ...``."""
+    print(f"edeflare: warning: {message}", file=sys.stderr)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``edeflare`` command."""
     parser = _Parser(
@@ -78,7 +84,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``edeflare`` console script; returns the exit code."""
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args))
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return int(args.func(args))
     except EdeflareError as exc:
         print(f"edeflare: error: {exc}", file=sys.stderr)
         return 1

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from typing import Any
 
 from .._registry import param_fields
@@ -17,6 +18,7 @@ __all__ = [
     "ms_to_us",
     "param_options",
     "sensor_size_arg",
+    "warn_outside_span",
 ]
 
 SIZE_HELP = "sensor size WxH, for files that record none (else max+1, with a warning)"
@@ -47,6 +49,29 @@ def crop_spec(text: str) -> tuple[int, int, int, int] | SensorSize:
 def ms_to_us(ms: float | None) -> int | None:
     """Milliseconds (or None) to integer microseconds."""
     return None if ms is None else round(ms * 1000)
+
+
+def warn_outside_span(source: Any, origin_us: int, start_us: int, end_us: int | None) -> None:
+    """Warn that ``[start_us, end_us)`` holds no events because it lies outside the recording.
+
+    Times are shown in ms relative to ``origin_us`` (the recording's first
+    event), as the ``--start-ms`` / ``--end-ms`` options take them. Nothing is
+    said when the window lies inside the span (it is merely quiet).
+    """
+    span = source.time_span_us()
+    if span is None:
+        return
+    first, last = span
+    if start_us <= last and (end_us is None or end_us > first):
+        return
+    lo = (start_us - origin_us) / 1000
+    window = f"{lo:g} ms on" if end_us is None else f"{lo:g}-{(end_us - origin_us) / 1000:g} ms"
+    warnings.warn(
+        f"{source.path}: the window {window} lies outside the recording, which spans "
+        f"0-{(last - origin_us) / 1000:g} ms from its first event (times are relative "
+        "to the recording's start, not absolute)",
+        stacklevel=2,
+    )
 
 
 def add_param_options(parser: argparse.ArgumentParser, params: type) -> None:

@@ -10,9 +10,19 @@ import numpy as np
 from tqdm import tqdm
 
 from ..events import center_crop, crop
-from ._common import GROUP_HELP, SIZE_HELP, crop_spec, ms_to_us, sensor_size_arg
+from ._common import (
+    GROUP_HELP,
+    SIZE_HELP,
+    crop_spec,
+    ms_to_us,
+    sensor_size_arg,
+    warn_outside_span,
+)
 
-HELP = "Convert between event formats (by suffix), streaming, optionally cropped."
+HELP = (
+    "Convert between event formats (by suffix), streaming, optionally cropped. Times are in "
+    "ms relative to the recording's start (its first event)."
+)
 
 
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
@@ -28,8 +38,16 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         metavar="WxH|X,Y,W,H",
         help="centre crop WxH (e.g. 640x480) or the rectangle X,Y,W,H",
     )
-    p.add_argument("--start-ms", type=float, help="keep events from this absolute time (ms)")
-    p.add_argument("--end-ms", type=float, help="keep events before this absolute time (ms)")
+    p.add_argument(
+        "--start-ms",
+        type=float,
+        help="keep events from this time, in ms after the recording's first event (not absolute)",
+    )
+    p.add_argument(
+        "--end-ms",
+        type=float,
+        help="keep events before this time, in ms after the recording's first event",
+    )
     p.add_argument(
         "--evt-version",
         default="evt2",
@@ -48,11 +66,17 @@ def run(args: argparse.Namespace) -> int:
     out_size = size
     if args.crop is not None:
         out_size = args.crop if len(args.crop) == 2 else tuple(args.crop[2:])
-    t_lo, t_hi = ms_to_us(args.start_ms), ms_to_us(args.end_ms)
+    rel_lo, rel_hi = ms_to_us(args.start_ms), ms_to_us(args.end_ms)
+    t_lo = t_hi = origin = None  # absolute, once the first event is known
 
     def chunks(bar: tqdm) -> Iterator[np.ndarray]:
+        nonlocal t_lo, t_hi, origin
         for events in src.chunks():
             bar.update(events.size)
+            if origin is None:
+                origin = int(events["t"][0])
+                t_lo = None if rel_lo is None else origin + rel_lo
+                t_hi = None if rel_hi is None else origin + rel_hi
             if t_lo is not None or t_hi is not None:
                 t = events["t"]
                 keep = np.ones(t.size, dtype=bool)
@@ -70,5 +94,8 @@ def run(args: argparse.Namespace) -> int:
 
     with tqdm(total=src.n_events, unit="ev", unit_scale=True, disable=None, leave=False) as bar:
         count = write_event_chunks(args.output, chunks(bar), out_size, evt_version=args.evt_version)
+    if count == 0 and origin is not None and (rel_lo is not None or rel_hi is not None):
+        hi = None if rel_hi is None else origin + rel_hi
+        warn_outside_span(src, origin, origin + (rel_lo or 0), hi)
     print(f"wrote {count:,} events ({out_size[0]}x{out_size[1]}) to {args.output}")
     return 0

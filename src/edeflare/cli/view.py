@@ -8,9 +8,12 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ..errors import EdeflareError
-from ._common import GROUP_HELP, SIZE_HELP, ms_to_us, sensor_size_arg
+from ._common import GROUP_HELP, SIZE_HELP, ms_to_us, sensor_size_arg, warn_outside_span
 
-HELP = "Render windows of events (ON red, OFF blue) to a PNG, GIF or MP4."
+HELP = (
+    "Render windows of events (ON red, OFF blue) to a PNG, GIF or MP4. Times are in ms "
+    "relative to the recording's start (its first event)."
+)
 
 
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
@@ -23,7 +26,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument(
         "--start-ms",
         type=float,
-        help="absolute start of the first window (ms); default: aligned to the first event",
+        help="start of the first window, in ms after the recording's first event "
+        "(not absolute time); default: the first event's aligned window",
     )
     p.add_argument("--window-ms", type=float, default=20.0, help="window length (ms)")
     p.add_argument("--count", type=int, default=1, help="number of consecutive windows")
@@ -47,18 +51,24 @@ def run(args: argparse.Namespace) -> int:
         raise EdeflareError(f"--window-ms must be positive, got {args.window_ms}")
     src = open_events(args.file, args.sensor_size, group=args.group)
     size = src.sensor_size
-    start = ms_to_us(args.start_ms)
+    origin = src.first_time_us()
+    if origin is None:
+        raise EdeflareError(f"{args.file}: no events to show")
+    start = None if args.start_ms is None else origin + ms_to_us(args.start_ms)
     end = None if start is None else start + window * args.count
-    frames, labels = [], []
+    frames, labels, counts = [], [], []
     with tqdm(total=args.count, unit="frame", disable=None, leave=False) as bar:
         for w_start, events in src.windows(window, start_us=start, end_us=end):
             frames.append(event_frame(events, size, background=args.background))
-            labels.append(f"{w_start / 1000:.1f} ms ({events.size:,} ev)")
+            counts.append(events.size)
+            labels.append(f"{(w_start - origin) / 1000:.1f} ms ({events.size:,} ev)")
             bar.update(1)
             if len(frames) >= args.count:
                 break
     if not frames:
         raise EdeflareError(f"{args.file}: no events to show")
+    if start is not None and not any(f_events for f_events in counts):
+        warn_outside_span(src, origin, start, start + window * len(frames))
     if out.suffix.lower() in (".gif", ".mp4"):
         animated = [grid([f], captions=[c]) for f, c in zip(frames, labels, strict=True)]
         save_animation(out, animated, fps=args.fps)

@@ -243,6 +243,45 @@ class EventSource:
             )
         return self._inferred_size
 
+    # -- time -------------------------------------------------------------------------------
+    def first_time_us(self) -> int | None:
+        """Absolute time of the first event, the recording's start (None for an empty file).
+
+        DSEC files read one value; other formats decode their first chunk only.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from edeflare.events import make_events
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "ev.csv"
+        >>> events = make_events([11_200_000, 11_300_000], [1, 2], [1, 2], [1, 0])
+        >>> write_events(path, events, (4, 4))
+        >>> EventSource(path).first_time_us()
+        11200000
+        """
+        if self._format.opener is None:
+            with DsecReader(self.path, group=self.group) as reader:
+                span = reader.time_range()
+            return None if span is None else span[0]
+        for events in self.chunks():
+            return int(events["t"][0])
+        return None
+
+    def time_span_us(self) -> tuple[int, int] | None:
+        """``(first t, last t)`` in absolute microseconds, or None for an empty file.
+
+        DSEC files read two values; other formats are streamed once.
+        """
+        if self._format.opener is None:
+            with DsecReader(self.path, group=self.group) as reader:
+                return reader.time_range()
+        first = last = None
+        for events in self.chunks():
+            if first is None:
+                first = int(events["t"][0])
+            last = int(events["t"][-1])
+        return None if first is None or last is None else (first, last)
+
     # -- data ---------------------------------------------------------------------------
     def _raw_chunks(self, chunk_events: int = 1 << 20) -> Iterator[np.ndarray]:
         if self._format.opener is None:
