@@ -233,3 +233,53 @@ def test_ddp_with_two_gloo_processes_matches_one_process(dataset, tmp_path):
         torch.testing.assert_close(a[k], b[k], rtol=1e-4, atol=1e-5)
     moved = any(not torch.equal(a[k], torch.zeros_like(a[k])) for k in a if "final" in k)
     assert moved  # training did change the zero-initialised last layer
+
+
+def test_csv_append_drops_a_torn_last_line(tmp_path):
+    from edeflare.train import _append_csv, _truncate_csv
+
+    log = tmp_path / "train_log.csv"
+    _append_csv(log, ["iteration", "loss"], [1, 0.5])
+    _append_csv(log, ["iteration", "loss"], [2, 0.25])
+    with open(log, "a") as f:
+        f.write("3,0.1")  # killed in the middle of a row: no newline
+    _append_csv(log, ["iteration", "loss"], [3, 0.125])
+    assert log.read_text() == "iteration,loss\n1,0.5\n2,0.25\n3,0.125\n"
+    with open(log, "a") as f:
+        f.write("4,0.0")
+    _truncate_csv(log, 10)  # a resume drops the torn row too
+    assert log.read_text() == "iteration,loss\r\n1,0.5\r\n2,0.25\r\n3,0.125\r\n".replace("\r", "")
+
+
+def test_checkpoint_holds_the_grad_scaler_state(tmp_path):
+    """AMP's loss scale and growth tracker round-trip through the checkpoint (weights_only load)."""
+    from edeflare.models import create_model
+    from edeflare.train import _save_checkpoint
+
+    model = create_model("unet2d.lite")
+    opt = torch.optim.Adam(model.parameters())
+    scaler = torch.amp.GradScaler("cpu", init_scale=512.0, growth_interval=7)
+    scaler.scale(torch.ones(1))  # initialises the scale, as the first step does
+    scaler.update(new_scale=128.0)
+    path = tmp_path / "checkpoint.pt"
+    _save_checkpoint(path, model, opt, 3, _config(), 0.5, 1.0, scaler)
+    state = torch.load(path, weights_only=True)
+    resumed = torch.amp.GradScaler("cpu", init_scale=65536.0, growth_interval=7)
+    resumed.load_state_dict(state["scaler"])
+    assert resumed.get_scale() == 128.0
+    assert resumed.state_dict() == scaler.state_dict()
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="AMP resume needs a CUDA device")
+def test_amp_resume_continues_the_loss_scale_on_gpu(dataset, tmp_path):
+    """Resumed at 8, a GPU run ends with the straight run's loss scale, not a reset one."""
+    config = _config(amp=True, device="cuda")
+    paths = _paths(dataset, "train")
+    train(config, paths, tmp_path / "once", progress=False)
+    part = tmp_path / "twice"
+    train(dataclasses.replace(config, iterations=8), paths, part, progress=False)
+    assert torch.load(part / "checkpoint.pt", weights_only=True)["scaler"]["scale"] > 0
+    train(config, paths, part, progress=False)
+    once = torch.load(tmp_path / "once" / "checkpoint.pt", weights_only=True)["scaler"]
+    twice = torch.load(part / "checkpoint.pt", weights_only=True)["scaler"]
+    assert once == twice
