@@ -46,6 +46,7 @@ _ZIP_ERRORS = (
     OSError,
     ValueError,
     EOFError,
+    KeyError,
     SyntaxError,
     tokenize.TokenError,
     zipfile.BadZipFile,
@@ -78,7 +79,7 @@ def open_npz(
     recorded = None
     try:
         with zipfile.ZipFile(path) as archive:
-            names = {n.removesuffix(".npy") for n in archive.namelist()}
+            names = {n[: -len(".npy")] for n in archive.namelist() if n.endswith(".npy")}
             missing = [k for k in _NPZ_FIELDS if k not in names]
             if missing:
                 raise EventFileError(path, f"npz lacks arrays {missing} (has {sorted(names)})")
