@@ -28,20 +28,18 @@ no full-resolution grid is ever built, which is what makes the model fast
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Sequence
 
 import numpy as np
 import torch
 import torch.nn.functional as F
-from torch import nn
 
-from .unet2d import _Block2d
+from .unet2d import UNet2dLayers
 
 __all__ = ["FlareMaskNet", "event_features", "event_keep_mask"]
 
 
-class FlareMaskNet(nn.Module):
+class FlareMaskNet(UNet2dLayers):
     """Per-cell flare mask at ``1/scale`` of the sensor's resolution.
 
     Parameters
@@ -72,26 +70,9 @@ class FlareMaskNet(nn.Module):
         features: Sequence[int] = (16, 32, 64, 128),
         groups: int = 8,
     ) -> None:
-        super().__init__()
-        features = tuple(int(f) for f in features)
+        super().__init__(2 * int(bins) + 1, 2 * int(bins), features, groups)
         self.bins = int(bins)
         self.scale = int(scale)
-        self.features_ = features
-        self.first = _Block2d(2 * self.bins + 1, features[0], groups)
-        self.downs = nn.ModuleList(_Block2d(a, b, groups) for a, b in itertools.pairwise(features))
-        self.ups = nn.ModuleList(
-            nn.ConvTranspose2d(b, a, 3, stride=2, padding=1, bias=False)
-            for a, b in zip(features[-2::-1], features[:0:-1], strict=True)
-        )
-        self.up_blocks = nn.ModuleList(_Block2d(a, a, groups) for a in features[-2::-1])
-        self.final = nn.Conv2d(features[0], 2 * self.bins, 1)
-        nn.init.zeros_(self.final.weight)
-        nn.init.zeros_(self.final.bias)
-
-    @property
-    def multiple(self) -> int:
-        """Low-resolution sizes are padded to multiples of this (``2 ** (levels - 1)``)."""
-        return 2 ** (len(self.features_) - 1)
 
     def features(self, x: torch.Tensor) -> torch.Tensor:
         """Low-resolution features ``(N, 2 bins + 1, ceil(H / s), ceil(W / s))`` of voxel grids."""
@@ -108,17 +89,7 @@ class FlareMaskNet(nn.Module):
 
     def logits(self, feats: torch.Tensor) -> torch.Tensor:
         """Keep logits ``(N, 2 bins, h, w)`` (ON bins, then OFF bins) of low-resolution features."""
-        h, w = feats.shape[2:]
-        m = self.multiple
-        z = F.pad(feats, [0, (-w) % m, 0, (-h) % m]) if (-h) % m or (-w) % m else feats
-        skips = [self.first(z)]
-        for down in self.downs:
-            skips.append(down(F.max_pool2d(skips[-1], 2)))
-        out = skips.pop()
-        for up, block in zip(self.ups, self.up_blocks, strict=True):
-            skip = skips.pop()
-            out = block(up(out, output_size=skip.shape[2:]) + skip)
-        return self.final(out)[:, :, :h, :w]
+        return self.unet(feats)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h, w = x.shape[3:]
