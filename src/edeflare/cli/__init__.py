@@ -85,6 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         with warnings.catch_warnings():
+            warnings.simplefilter("default")  # shown as one line, never raised
             warnings.showwarning = _show_warning
             return int(args.func(args))
     except EdeflareError as exc:

@@ -69,7 +69,7 @@ def check_aedat4_container(path: str | os.PathLike[str]) -> str:
     >>> check_aedat4_container(path).startswith("<dv")
     True
     >>> _ = path.write_bytes(b"#!AER-DAT4.0\\r\\n\\x08\\x00\\x00\\x00" + bytes(8))
-    >>> check_aedat4_container(path)
+    >>> check_aedat4_container(path)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
       ...
     edeflare.errors.EventFileError: ...: corrupt AEDAT 4 header: ...
