@@ -383,7 +383,7 @@ class ModelParams:
         default=None,
         metadata=cli_option(
             "--model",
-            "weights (.safetensors)",
+            "weights (.safetensors), or an exported .onnx file",
             metavar="PATH",
             type=Path,
             convert=str,
@@ -406,6 +406,15 @@ class ModelParams:
         metadata=cli_option("--batch-windows", "20 ms windows per network call", metavar="N"),
     )
     seed: int = 0
+    runtime: str = dataclasses.field(
+        default="auto",
+        metadata=cli_option(
+            "--runtime",
+            "what runs the network: auto (ONNX Runtime for .onnx files, else torch), torch, "
+            "onnx (exports the weights in memory; needs the onnx extra)",
+            choices=("auto", "torch", "onnx"),
+        ),
+    )
 
 
 class VoxelMethod(Method):
@@ -546,12 +555,15 @@ class ModelMethod(Method):
         device: str,
         batch_windows: int,
         seed: int,
+        runtime: str = "auto",
     ) -> None:
-        from .models.infer import DECODERS, bundled_weights
+        from .models.infer import DECODERS, RUNTIMES, bundled_weights
         from .models.weights import read_card
 
         if decoder not in DECODERS:
             raise ParameterError(f"decoder must be one of {DECODERS}, got {decoder!r}")
+        if runtime not in RUNTIMES:
+            raise ParameterError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -566,6 +578,7 @@ class ModelMethod(Method):
             device=device,
             batch_windows=batch_windows,
             seed=seed,
+            runtime=runtime,
         )
 
     def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
@@ -579,6 +592,7 @@ class ModelMethod(Method):
             device=p["device"],
             batch_windows=p["batch_windows"],
             seed=seed,
+            runtime=p["runtime"],
         )
         size = check_sensor_size(sensor_size)
 

@@ -25,6 +25,7 @@ from . import (
     deflare,
     demo,
     evaluate,
+    export,
     info,
     pair,
     score,
@@ -56,6 +57,7 @@ COMMANDS = (
     simulate,
     pair,
     train,
+    export,
     ablate,
     demo,
 )

@@ -33,12 +33,15 @@ import torch
 from ..errors import EdeflareError
 from ..events import SensorSize, check_events
 from ..voxel import decode, decode_keep, encode
+from . import create_model
+from .export import OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_mask
 from .weights import ModelCard, load_model
 
-__all__ = ["DECODERS", "ModelDeflarer", "bundled_weights"]
+__all__ = ["DECODERS", "RUNTIMES", "ModelDeflarer", "bundled_weights"]
 
 DECODERS = ("keep", "paper")
+RUNTIMES = ("auto", "torch", "onnx")
 
 _ASSETS = Path(__file__).resolve().parent.parent / "assets"
 
@@ -67,7 +70,8 @@ class ModelDeflarer:
     Parameters
     ----------
     weights : path-like
-        A ``.safetensors`` file written by :func:`edeflare.models.weights.save_model`.
+        A ``.safetensors`` file written by :func:`edeflare.models.weights.save_model`,
+        or an ``.onnx`` file written by :func:`edeflare.models.export.export_onnx`.
     decoder : {"keep", "paper"}
     device : str
         ``"auto"`` (CUDA if available), ``"cpu"``, ``"cuda:1"``...
@@ -75,6 +79,11 @@ class ModelDeflarer:
         Windows per forward pass.
     seed : int
         Seeds the decoding draws (with each window's start).
+    runtime : {"auto", "torch", "onnx"}
+        What runs the network: ``"auto"`` is ONNX Runtime for ``.onnx`` files
+        and torch otherwise; ``"onnx"`` on a ``.safetensors`` file exports the
+        network (in memory, once per sensor size) and runs it with ONNX Runtime.
+        Encoding and decoding are the same code for both.
     """
 
     def __init__(
@@ -85,15 +94,30 @@ class ModelDeflarer:
         device: str = "auto",
         batch_windows: int = 4,
         seed: int = 0,
+        runtime: str = "auto",
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
         if batch_windows < 1:
             raise EdeflareError(f"batch_windows must be at least 1, got {batch_windows}")
+        if runtime not in RUNTIMES:
+            raise EdeflareError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
+        is_onnx = Path(weights).suffix.lower() == ".onnx"
+        if runtime == "torch" and is_onnx:
+            raise EdeflareError(f"{weights}: an ONNX file runs with runtime 'onnx', not 'torch'")
+        self.runtime = "onnx" if is_onnx or runtime == "onnx" else "torch"
         self.device = _device(device)
-        model, card = load_model(weights, self.device)
+        self._onnx: dict[tuple[int, int], OnnxNetwork] = {}
+        if is_onnx:
+            exported = OnnxNetwork(weights, device=str(self.device))
+            self._onnx[exported.sensor_size] = exported
+            card = exported.card
+            model = create_model(card.preset)  # the architecture only: its scale and bins
+        else:
+            model, card = load_model(weights, self.device)
         self.model: torch.nn.Module = model
         self.card: ModelCard = card
+        self._exported_only = is_onnx
         self.decoder = decoder
         self.batch_windows = int(batch_windows)
         self.seed = int(seed)
@@ -103,11 +127,41 @@ class ModelDeflarer:
         """Window length the model was trained on (µs)."""
         return self.card.window_us
 
-    def _restore(self, grids: list[np.ndarray]) -> list[np.ndarray]:
-        x = torch.from_numpy(np.stack(grids)[:, None]).to(self.device)
-        with torch.no_grad():
-            y = self.model(x)[:, 0].float().cpu().numpy()
-        return list(y)
+    def _onnx_network(self, sensor_size: SensorSize) -> OnnxNetwork:
+        size = (int(sensor_size[0]), int(sensor_size[1]))
+        if size not in self._onnx:
+            if self._exported_only:  # an .onnx file: made for one sensor size
+                next(iter(self._onnx.values())).require_sensor_size(size)
+            self._onnx[size] = OnnxNetwork(
+                onnx_bytes(self.model.cpu(), self.card, size), device=str(self.device)
+            )
+        return self._onnx[size]
+
+    def _network(self, x: np.ndarray, sensor_size: SensorSize, mask: bool) -> np.ndarray:
+        """The network's output for a float32 batch: logits (mask) or restored grids."""
+        if self.runtime == "onnx":
+            return self._onnx_network(sensor_size)(x)
+        with torch.inference_mode():
+            t = torch.from_numpy(x).to(self.device)
+            y = self.model.logits(t) if mask else self.model(t)  # type: ignore[operator]
+            return y.float().cpu().numpy()
+
+    def network_output(
+        self, events: np.ndarray, sensor_size: SensorSize, start_us: int
+    ) -> np.ndarray:
+        """The network's output for one window: mask logits ``(2 bins, h, w)`` of a mask
+        model, the restored grid ``(bins, H, W)`` of a voxel model."""
+        check_events(events, sensor_size)
+        if isinstance(self.model, FlareMaskNet):
+            net = self.model
+            x = event_features(events, sensor_size, start_us, self.window_us, net.bins, net.scale)
+            return self._network(x[None], sensor_size, True)[0]
+        grid = encode(events, sensor_size, start_us, self.window_us, self.card.bins)
+        return self._restore([grid], sensor_size)[0]
+
+    def _restore(self, grids: list[np.ndarray], sensor_size: SensorSize) -> list[np.ndarray]:
+        y = self._network(np.stack(grids)[:, None].astype(np.float32), sensor_size, False)
+        return list(y[:, 0])
 
     def _decode(self, grid: np.ndarray, events: np.ndarray, start: int) -> np.ndarray:
         rng = np.random.default_rng((self.seed, int(start)))
@@ -148,6 +202,14 @@ class ModelDeflarer:
         batch: list[tuple[int, np.ndarray]] = []
         for start, events in windows:
             check_events(events, sensor_size)
+            if events.size and (
+                events["t"][0] < start or events["t"][-1] >= start + self.window_us
+            ):
+                raise EdeflareError(
+                    f"the window starting at {start} us holds events from {events['t'][0]} to "
+                    f"{events['t'][-1]} us, outside [{start}, {start + self.window_us}) (the "
+                    f"model's window is {self.window_us} us)"
+                )
             batch.append((int(start), events))
             if len(batch) == self.batch_windows:
                 yield from self._run(batch, sensor_size, lo, hi)
@@ -164,8 +226,7 @@ class ModelDeflarer:
         feats = np.stack(
             [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
         )
-        with torch.inference_mode():
-            logits = net.logits(torch.from_numpy(feats).to(self.device)).float().cpu().numpy()
+        logits = self._network(feats, sensor_size, True)
         for (start, events), lg in zip(batch, logits, strict=True):
             yield start, events[event_keep_mask(lg, events, start, w, scale)]
 
@@ -181,7 +242,9 @@ class ModelDeflarer:
             return
         bins, w = self.card.bins, self.window_us
         grids = [encode(ev, sensor_size, s, w, bins) for s, ev in batch]
-        for (start, events), grid, restored in zip(batch, grids, self._restore(grids), strict=True):
+        for (start, events), grid, restored in zip(
+            batch, grids, self._restore(grids, sensor_size), strict=True
+        ):
             # bin b covers [start + ceil(b w / bins), start + ceil((b + 1) w / bins))
             edges = start + -(-np.arange(bins + 1) * w // bins)
             outside = np.zeros(bins, dtype=bool)

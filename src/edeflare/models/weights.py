@@ -104,8 +104,12 @@ def _check_file(path: Path) -> None:
 
 
 def read_card(path: str | os.PathLike[str]) -> ModelCard:
-    """The model card of a weights file, without loading the tensors."""
+    """The model card of a weights file (or of an exported ``.onnx``), without loading tensors."""
     path = Path(path)
+    if path.suffix.lower() == ".onnx":
+        from .export import read_onnx_card
+
+        return read_onnx_card(path)
     _check_file(path)
     try:
         from safetensors import safe_open
