@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 import subprocess
 import sys
@@ -285,3 +286,17 @@ def test_group_option_opens_one_stream_of_a_paired_file(tmp_path, capsys, rng):
     assert "applies to HDF5 files only" in capsys.readouterr().err
     assert main(["info", str(path), "--group", "nope"]) == 1
     assert "no event group 'nope'" in capsys.readouterr().err
+
+
+def test_deflare_verbose_prints_speed_latency_and_memory(small_h5, tmp_path, capsys):
+    path, events = small_h5
+    assert main(["deflare", str(path), str(tmp_path / "o.h5"), "-m", "voxel", "-v"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("voxel: 5,000 events in")
+    span_s = (int(events["t"][-1]) - int(events["t"][0])) / 1e6
+    assert f"for {span_s:.3f} s of events (real-time factor" in lines[1]
+    numbers = re.search(r"median ([\d.]+) ms, p95 ([\d.]+) ms, max ([\d.]+) ms", lines[1])
+    assert numbers is not None
+    p50, p95, worst = map(float, numbers.groups())
+    assert 0 <= p50 <= p95 <= worst
+    assert re.search(r"peak memory [\d,]+ MB$", lines[1])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from edeflare.deflare import (
     DeflareStats,
     Method,
     RawMethod,
+    _WindowStreamer,
     create_method,
     deflare_file,
     list_methods,
@@ -219,6 +221,25 @@ def test_streaming_a_file_equals_one_pass(tmp_path, stream, name, window_us):
     assert size == SIZE
     assert same_events(got, expected)
     assert stats == DeflareStats(stream.size, expected.size, 0)
+
+
+def test_deflare_file_reports_its_speed_and_latency(tmp_path, stream, monkeypatch):
+    write_events(tmp_path / "in.h5", stream, SIZE)
+    real_process = _WindowStreamer.process
+    slow_us = 30_000
+
+    def slow_process(self, events, until_us):  # every window takes at least 30 ms
+        time.sleep(slow_us * 1e-6)
+        return real_process(self, events, until_us)
+
+    monkeypatch.setattr(_WindowStreamer, "process", slow_process)
+    stats = deflare_file(tmp_path / "in.h5", tmp_path / "out.h5", "voxel", 20_000, progress=False)
+    assert stats.span_us == int(stream["t"][-1] - stream["t"][0])
+    p50, p95, worst = stats.latency_ms
+    assert slow_us / 1e3 <= p50 <= p95 <= worst
+    n_windows = -(-stats.span_us // 20_000)
+    assert stats.seconds >= n_windows * slow_us * 1e-6  # every window's call was timed
+    assert stats.real_time_factor == pytest.approx(stats.seconds / (stats.span_us * 1e-6))
 
 
 def test_streaming_efr_over_a_long_file_releases_outputs_as_it_goes(tmp_path, rng, monkeypatch):

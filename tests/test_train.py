@@ -90,6 +90,45 @@ def test_training_lowers_the_loss_and_writes_everything(dataset, tmp_path):
     assert (out / "best.safetensors").exists() and (out / "config.json").exists()
 
 
+def test_keep_loss_teaches_a_mask_model_to_drop_the_blob_and_keep_the_rest(dataset, tmp_path):
+    from edeflare.io.dsec import read_dsec
+    from edeflare.models.infer import ModelDeflarer
+
+    final = train(
+        _config(preset="mask.lite", loss="keep", iterations=60, val_every=1000),
+        _paths(dataset, "train"),
+        tmp_path / "run",
+        progress=False,
+    )
+    rows = _log(tmp_path / "run" / "train_log.csv")
+    assert float(rows[0]["loss"]) == pytest.approx(-(np.log(0.75) + np.log(0.25)) / 2, abs=0.02)
+    assert np.mean([float(r["loss"]) for r in rows[-10:]]) < 0.5  # well below the identity's
+    test = _paths(dataset, "test")[0]
+    inp, gt = read_dsec(test, "input")[0], read_dsec(test, "gt")[0]
+    out = np.concatenate(
+        [
+            e
+            for _, e in ModelDeflarer(final).windows(
+                [(s, inp[(inp["t"] >= s) & (inp["t"] < s + 20_000)]) for s in (0, 20_000, 40_000)],
+                SIZE,
+            )
+        ]
+    )
+    key = lambda ev: ev["t"].astype(np.int64) * 10_000 + ev["x"] * 100 + ev["y"]  # noqa: E731
+    kept = np.isin(key(inp), key(out))
+    is_gt = np.isin(key(inp), key(gt))
+    far = (inp["x"] < 6) | (inp["y"] < 3)  # two pixels or more from the blob's cells
+    assert kept[~is_gt].mean() < 0.3  # most of the blob goes
+    assert kept[is_gt & far].mean() > 0.9  # the scene away from it stays
+
+
+def test_keep_loss_needs_a_mask_preset_and_losses_are_checked(dataset, tmp_path):
+    with pytest.raises(EdeflareError, match="loss 'keep' trains mask presets"):
+        train(_config(loss="keep"), _paths(dataset, "train"), tmp_path / "a", progress=False)
+    with pytest.raises(EdeflareError, match=r"unknown loss 'l1'; known: \['mse', 'keep'\]"):
+        train(_config(loss="l1"), _paths(dataset, "train"), tmp_path / "b", progress=False)
+
+
 def test_resume_is_exact_and_logs_are_not_duplicated(dataset, tmp_path):
     cfg = _config()
     straight = train(cfg, _paths(dataset, "train"), tmp_path / "a", progress=False)

@@ -32,8 +32,10 @@ parameters; :func:`create_method` rejects any other name).
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import sys
+import time
 import types
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -687,12 +689,31 @@ def _make_dv_knoise(time_delta_us: int = 1_000) -> Method:
 
 @dataclasses.dataclass(frozen=True)
 class DeflareStats:
-    """What :func:`deflare_file` did."""
+    """What :func:`deflare_file` did, and how fast.
+
+    The timings are not part of the equality or the repr (they differ run to run).
+    """
 
     events_in: int
     events_out: int
     late_dropped: int
     """Outputs that lagged their input by more than ``max_lag_us`` (EFR only)."""
+    seconds: float = dataclasses.field(default=0.0, compare=False, repr=False)
+    """Wall time of reading, de-flaring and writing (not of the method's setup,
+    such as loading a model)."""
+    span_us: int = dataclasses.field(default=0, compare=False, repr=False)
+    """Time from the input's first event to its last."""
+    latency_ms: tuple[float, float, float] = dataclasses.field(
+        default=(0.0, 0.0, 0.0), compare=False, repr=False
+    )
+    """Median, 95th percentile and maximum, over the streaming windows, of the
+    time from the moment a window is complete (its last event read) to the
+    moment the method returns its output: the method's latency in a live stream."""
+
+    @property
+    def real_time_factor(self) -> float:
+        """Run time over recording time (below 1: faster than the sensor)."""
+        return self.seconds / (self.span_us * 1e-6) if self.span_us > 0 else math.nan
 
 
 class _Reorder:
@@ -859,15 +880,25 @@ def deflare_file(
     streamer = m.streamer(size, rng=rng, prepared=prepared)
     reorder = None if streamer.ordered else _Reorder(streamer, max_lag_us)
     n_in = 0
+    first_t = last_t = None
+    call_seconds: list[float] = []
+    t_begin = time.perf_counter()
 
     def outputs(bar: tqdm) -> Iterator[np.ndarray]:
-        nonlocal n_in
+        nonlocal n_in, first_t, last_t
         for start, events in src.windows(window_us):
             n_in += events.size
             bar.update(events.size)
+            if events.size:
+                first_t = int(events["t"][0]) if first_t is None else first_t
+                last_t = int(events["t"][-1])
+            t_call = time.perf_counter()
             out = streamer.process(events, start + window_us)
+            call_seconds.append(time.perf_counter() - t_call)
             yield out if reorder is None else reorder.push(out, start + window_us)
+        t_call = time.perf_counter()
         tail = streamer.flush()
+        call_seconds.append(time.perf_counter() - t_call)
         yield tail if reorder is None else reorder.finish(tail)
 
     desc = m.name or type(m).__name__
@@ -882,7 +913,19 @@ def deflare_file(
             f"max_lag_us={max_lag_us} and were dropped; pass max_lag_us=None for an exact result",
             stacklevel=2,
         )
-    return DeflareStats(n_in, n_out, dropped)
+    calls_ms = np.asarray(call_seconds) * 1e3
+    return DeflareStats(
+        n_in,
+        n_out,
+        dropped,
+        seconds=time.perf_counter() - t_begin,
+        span_us=0 if first_t is None or last_t is None else last_t - first_t,
+        latency_ms=(
+            float(np.median(calls_ms)),
+            float(np.percentile(calls_ms, 95)),
+            float(calls_ms.max()),
+        ),
+    )
 
 
 class _CallableModule(types.ModuleType):

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import torch
 import torch.distributed as dist
+from torch import nn
 from torch.nn.parallel import DistributedDataParallel
 from tqdm import tqdm
 
@@ -42,9 +43,12 @@ from .data.pairs import PairedWindows
 from .errors import EdeflareError
 from .io._atomic import atomic_path
 from .models import create_model, get_preset
+from .models.flaremask import FlareMaskNet, keep_loss
 from .models.weights import ModelCard, save_model
 
-__all__ = ["TRAIN_PRESETS", "TrainConfig", "train"]
+__all__ = ["LOSSES", "TRAIN_PRESETS", "TrainConfig", "train"]
+
+LOSSES = ("mse", "keep")
 
 
 @dataclass(frozen=True)
@@ -79,6 +83,7 @@ class TrainConfig:
     precompute: bool = False  # encode every training window once, keep int16 grids in memory
     device: str = "auto"
     data: str = ""  # description of the training data, for the model card
+    loss: str = "mse"  # "mse" of the voxel grids, or "keep": per-event decisions (mask presets)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
@@ -146,6 +151,20 @@ class _Dist:
     @property
     def main(self) -> bool:
         return self.rank == 0
+
+
+class _WithLoss(nn.Module):
+    """A model and its training loss as one module: ``forward(x, y)`` is the loss."""
+
+    def __init__(self, model: nn.Module, loss: str) -> None:
+        super().__init__()
+        self.model = model
+        self.loss = loss
+
+    def forward(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        if self.loss == "keep":
+            return keep_loss(self.model, x, y)  # type: ignore[arg-type]
+        return nn.functional.mse_loss(self.model(x), y)
 
 
 def _dist_env() -> _Dist:
@@ -352,6 +371,10 @@ def train(
     then equal the saved one.
     """
     get_preset(config.preset)
+    if config.loss not in LOSSES:
+        raise EdeflareError(f"unknown loss {config.loss!r}; known: {list(LOSSES)}")
+    if config.loss == "keep" and not isinstance(create_model(config.preset), FlareMaskNet):
+        raise EdeflareError(f"loss 'keep' trains mask presets (mask.*), not {config.preset!r}")
     env = _dist_env()
     device = _device(config, env)
     out = Path(out_dir)
@@ -409,10 +432,11 @@ def train(
             tmp.write_text(json.dumps(config.to_dict(), indent=2))
         for name in ("train_log.csv", "val_log.csv"):
             _truncate_csv(out / name, start)
-    net = model
+    # The loss is computed inside the module that DDP wraps, so that its gradients are synced.
+    net: nn.Module = _WithLoss(model, config.loss)
     if env.world > 1:
         net = DistributedDataParallel(
-            model, device_ids=[device.index] if device.type == "cuda" else None
+            net, device_ids=[device.index] if device.type == "cuda" else None
         )
     use_amp = config.amp and device.type == "cuda"
     scaler = torch.amp.GradScaler("cuda", enabled=use_amp)
@@ -432,7 +456,7 @@ def train(
             group["lr"] = lr
         x, y = (t.to(device, non_blocking=True) for t in batch)
         with torch.autocast(device_type=device.type, enabled=use_amp):
-            loss = torch.nn.functional.mse_loss(net(x), y)
+            loss = net(x, y)
         opt.zero_grad(set_to_none=True)
         scaler.scale(loss).backward()
         scaler.step(opt)

@@ -64,8 +64,8 @@ def test_harness_counts_a_crash_and_goes_on(tmp_path, monkeypatch):
             script = (
                 "import os, sys\n"
                 f"open({log!r}, 'a').write("
-                "'start 0\\n{\"i\": 0, \"kind\": \"error\"}\\nstart 1\\n"
-                "{\"i\": 1, \"kind\": \"ok\"}\\nstart 2\\n')\n"
+                '\'start 0\\n{"i": 0, "kind": "error"}\\nstart 1\\n'
+                '{"i": 1, "kind": "ok"}\\nstart 2\\n\')\n'
                 "os.abort()\n"
             )
             return real_popen([sys.executable, "-c", script], **kwargs)

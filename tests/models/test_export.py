@@ -64,9 +64,7 @@ def test_bundled_model_export_matches_torch_on_a_real_window(tmp_path):
     assert parity.decisions_differing <= parity.decisions // 10_000
 
 
-def test_deflare_runs_an_exported_file_and_the_onnx_runtime_on_weights(
-    mask_weights, tmp_path, rng
-):
+def test_deflare_runs_an_exported_file_and_the_onnx_runtime_on_weights(mask_weights, tmp_path, rng):
     size = (96, 64)
     events = random_events(rng, 20_000, size, t0=0, span_us=100_000)
     events = np.concatenate([events, random_events(rng, 20_000, (8, 8), t0=0, span_us=100_000)])

@@ -45,6 +45,7 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(1, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+
 # Order of appearance in --help.
 COMMANDS = (
     info,

@@ -60,6 +60,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         choices=["evt2", "evt3"],
         help="encoding of .raw outputs (EVT 3.0 output must span under 16.8 s)",
     )
+    p.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="also print the speed: run time, real-time factor, per-window latency, peak memory",
+    )
     for params, _ in _param_groups():  # --model, --efr-*, --pfd-*, --voxel-*
         add_param_options(p, params)
     p.set_defaults(func=run)
@@ -105,4 +111,15 @@ def run(args: argparse.Namespace) -> int:
         f"{args.method}: {stats.events_in:,} events in, {stats.events_out:,} out "
         f"({kept:.1%}); wrote {args.output}"
     )
+    if args.verbose:
+        import resource
+
+        p50, p95, worst = stats.latency_ms
+        peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+        print(
+            f"{args.method}: {stats.seconds:.2f} s for {stats.span_us / 1e6:.3f} s of events "
+            f"(real-time factor {stats.real_time_factor:.3g}); latency from a "
+            f"{args.window_ms:g} ms window's last event to its output: median {p50:.1f} ms, "
+            f"p95 {p95:.1f} ms, max {worst:.1f} ms; peak memory {peak_mb:,.0f} MB"
+        )
     return 0

@@ -14,6 +14,7 @@ HELP = (
     "onnx extra (pip install 'edeflare[onnx]')."
 )
 
+
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     """Register the command."""
     p = sub.add_parser("export", help=HELP, description=HELP, **kwargs)
@@ -37,6 +38,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     )
     p.add_argument("--check-windows", type=int, default=20, metavar="N", help="windows checked")
     p.set_defaults(func=run)
+
 
 def run(args: argparse.Namespace) -> int:
     """Export, then optionally check parity on a recording."""

@@ -45,6 +45,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("--iterations", type=int)
     p.add_argument("--batch-size", type=int, help="windows per process and iteration")
     p.add_argument("--lr", type=float)
+    p.add_argument(
+        "--loss",
+        choices=["mse", "keep"],
+        help="mse: of the voxel grids; keep: class-balanced cross-entropy of the per-event keep "
+        "decisions (mask presets, on keep-only targets)",
+    )
     p.add_argument("--crop", type=_crop, metavar="HxW", help="random crop size")
     p.add_argument("--seed", type=int)
     p.add_argument("--val-every", type=int)

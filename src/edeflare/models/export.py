@@ -336,6 +336,4 @@ def onnx_parity(
             differing += int(np.count_nonzero(np.rint(y0) != np.rint(y1)))
             n_decisions += int(y0.size)
         n_windows += 1
-    return Parity(
-        n_windows, worst, largest, n_decisions, differing, "event" if mask else "cell"
-    )
+    return Parity(n_windows, worst, largest, n_decisions, differing, "event" if mask else "cell")
