@@ -1,4 +1,10 @@
-"""Sparse flare sensing: drop each flare-origin input event with prob 1-q (q per sequence)."""
+"""Sparse flare sensing: drop each flare-origin input event with prob 1-q (q per sequence).
+
+python thin.py IN OUT [NEAR_PX] [KEEP_NEAR] [QLO] [QHI]: flare events within NEAR_PX (default 1) of
+a light event of the same 10 ms are never thinned; with KEEP_NEAR=1 they are also labelled "keep"
+(the dense glow around a source is what a real sensor records as the source). The survival q is
+log-uniform in [QLO, QHI] (default 0.02, 0.6).
+"""
 import sys, json
 from pathlib import Path
 import numpy as np, h5py
@@ -9,7 +15,10 @@ def key(ev):
     return (ev["t"].astype(np.int64) << 24) ^ (ev["x"].astype(np.int64) << 12) ^ (ev["y"].astype(np.int64) << 1) ^ ev["p"].astype(np.int64)
 
 src, dst = Path(sys.argv[1]), Path(sys.argv[2])
-qlo, qhi = 0.02, 0.6
+near_px = int(sys.argv[3]) if len(sys.argv) > 3 else 1
+keep_near = len(sys.argv) > 4 and sys.argv[4] == "1"
+qlo = float(sys.argv[5]) if len(sys.argv) > 5 else 0.02
+qhi = float(sys.argv[6]) if len(sys.argv) > 6 else 0.6
 for split in ("train", "test"):
     (dst / split).mkdir(parents=True, exist_ok=True)
     for f in sorted((src / split).glob("*.h5")):
@@ -37,7 +46,7 @@ for split in ("train", "test"):
             m = np.zeros((H, W), bool)
             sel = lw == k
             m[light["y"][sel], light["x"][sel]] = True
-            m = ndimage.binary_dilation(m, iterations=1)
+            m = ndimage.binary_dilation(m, iterations=near_px)
             ii = np.nonzero(win == k)[0]
             near[ii] = m[inp["y"][ii], inp["x"][ii]]
         drop = isflare & ~near & (rng.random(inp.size) >= q)
@@ -50,8 +59,10 @@ for split in ("train", "test"):
         streams["input"] = merged
         # the target of a keep-only de-flarer: the input's true events (scene and source)
         streams["gt_full"] = streams["gt"]
-        streams["gt"] = merged[np.isin(key(merged), key(np.concatenate([streams["gt"], light])))]
+        keep = np.concatenate([streams["gt"], light] + ([inp[isflare & near]] if keep_near else []))
+        streams["gt"] = merged[np.isin(key(merged), key(keep))]
         attrs["flare_detection_q"] = q
         attrs.pop("sensor_size", None)
+        streams["light"] = light  # the source alone, for statistics (benchmarks/flare_stats.py)
         write_dsec_groups(out, streams, size, attrs)
         print(f.name, f"q={q:.3f}", int(isflare.sum()), int(drop.sum()), missing.size, flush=True)
