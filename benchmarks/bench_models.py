@@ -8,7 +8,12 @@ per preset, so the figures do not mix). The reference in the same run is
 the paper preset ``unet3d.paper``: the ratio column is its time over the
 preset's.
 
-Run: ``python benchmarks/bench_models.py [--windows 3]``
+Where CUDA is present, every preset is measured on the GPU too, with
+automatic mixed precision off and on (``device`` ``cuda`` / ``cuda+amp``):
+windows per second at batch 1 and 8 (synchronised timings), real-time factor,
+and the peak GPU memory (``torch.cuda.max_memory_allocated``).
+
+Run: ``python benchmarks/bench_models.py [--windows 3] [--no-cuda]``
 """
 
 from __future__ import annotations
@@ -52,9 +57,71 @@ print(json.dumps({"params": sum(p.numel() for p in model.parameters()), "infer_s
 """
 
 
+_CUDA_CHILD = r"""
+import json, sys, time
+import torch
+from edeflare.models import create_model
+name, windows, amp = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
+torch.manual_seed(0)
+dev = torch.device("cuda")
+model = create_model(name).to(dev).eval()
+out = {}
+for batch in (1, 8):
+    x = torch.randn(batch, 1, 8, 480, 640, device=dev)
+    torch.cuda.reset_peak_memory_stats()
+    with torch.inference_mode(), torch.autocast("cuda", enabled=amp):
+        for _ in range(2):
+            model(x)
+        torch.cuda.synchronize()
+        t0 = time.perf_counter()
+        for _ in range(windows):
+            model(x)
+        torch.cuda.synchronize()
+    out[f"s_per_window_b{batch}"] = (time.perf_counter() - t0) / (windows * batch)
+    out[f"peak_gpu_mib_b{batch}"] = torch.cuda.max_memory_allocated() / 2**20
+out["gpu"] = torch.cuda.get_device_name()
+print(json.dumps(out))
+"""
+
+
+def _cuda_rows(windows: int) -> list[dict[str, object]]:
+    import torch
+
+    from edeflare.models import list_models
+
+    if not torch.cuda.is_available():
+        return []
+    rows = []
+    for name in list_models():
+        for amp in (False, True):
+            r = json.loads(
+                subprocess.run(
+                    [sys.executable, "-c", _CUDA_CHILD, name, str(max(windows, 10)), str(int(amp))],
+                    check=True,
+                    capture_output=True,
+                    text=True,
+                ).stdout
+            )
+            rows.append(
+                {
+                    "preset": name,
+                    "device": "cuda+amp" if amp else "cuda",
+                    "gpu": r["gpu"],
+                    "windows_per_s_b1": 1 / r["s_per_window_b1"],
+                    "windows_per_s_b8": 1 / r["s_per_window_b8"],
+                    "real_time_factor_b1": r["s_per_window_b1"] / 0.020,
+                    "real_time_factor_b8": r["s_per_window_b8"] / 0.020,
+                    "peak_gpu_mib_b1": r["peak_gpu_mib_b1"],
+                    "peak_gpu_mib_b8": r["peak_gpu_mib_b8"],
+                }
+            )
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--windows", type=int, default=3, help="timed repetitions per preset")
+    parser.add_argument("--no-cuda", action="store_true", help="skip the GPU measurements")
     args = parser.parse_args()
     from edeflare.models import list_models
 
@@ -84,6 +151,10 @@ def main() -> None:
             }
         )
     report("models", rows, list(rows[0]))
+    gpu_rows = [] if args.no_cuda else _cuda_rows(args.windows)
+    if gpu_rows:
+        print()
+        report("models_cuda", gpu_rows, list(gpu_rows[0]))
 
 
 if __name__ == "__main__":
