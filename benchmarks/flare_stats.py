@@ -38,7 +38,10 @@ from edeflare.io.sequence import list_sequences
 from edeflare.viz import event_frame, grid, save_image
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
-RECORDINGS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
+RECORDINGS = {  # file: short label of the figure
+    "prophesee_gen3_rotating_light.raw": "real: Gen3 light",
+    "davis346_flicker_lamps.aedat4": "real: DAVIS lamps",
+}
 
 
 def _rows(stats: dict[str, dict]) -> list[dict[str, object]]:
@@ -122,7 +125,7 @@ def main() -> None:
         name = rec.split(".")[0]
         stats[name] = flare_statistics(recording.events, lights, recording.sensor_size).to_dict()
         images.append(_window_image(recording.events, lights, recording.sensor_size, args.crop))
-        labels.append(f"real: {name}")
+        labels.append(RECORDINGS[rec])
     for spec in args.sim:
         name, folder = spec.split("=", 1)
         per_sequence = []
@@ -135,7 +138,7 @@ def main() -> None:
             per_sequence.append(flare_statistics(events, lights, size).to_dict())
             if k == 0:
                 images.append(_window_image(events, lights, size, args.crop))
-                labels.append(f"sim: {name} ({seq.stem})")
+                labels.append(f"sim: {name}")
         if per_sequence:
             stats[name] = _median(per_sequence)
     rows = _rows(stats)

@@ -127,6 +127,9 @@ def test_keep_loss_needs_a_mask_preset_and_losses_are_checked(dataset, tmp_path)
         train(_config(loss="keep"), _paths(dataset, "train"), tmp_path / "a", progress=False)
     with pytest.raises(EdeflareError, match=r"unknown loss 'l1'; known: \['mse', 'keep'\]"):
         train(_config(loss="l1"), _paths(dataset, "train"), tmp_path / "b", progress=False)
+    bad = _config(preset="mask.lite", loss="keep", keep_weight=1.0)
+    with pytest.raises(EdeflareError, match=r"keep_weight must be in \(0, 1\), got 1.0"):
+        train(bad, _paths(dataset, "train"), tmp_path / "c", progress=False)
 
 
 def test_resume_is_exact_and_logs_are_not_duplicated(dataset, tmp_path):

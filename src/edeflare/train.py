@@ -84,6 +84,7 @@ class TrainConfig:
     device: str = "auto"
     data: str = ""  # description of the training data, for the model card
     loss: str = "mse"  # "mse" of the voxel grids, or "keep": per-event decisions (mask presets)
+    keep_weight: float = 0.5  # loss "keep": the share of the loss on the events to keep
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
@@ -156,14 +157,15 @@ class _Dist:
 class _WithLoss(nn.Module):
     """A model and its training loss as one module: ``forward(x, y)`` is the loss."""
 
-    def __init__(self, model: nn.Module, loss: str) -> None:
+    def __init__(self, model: nn.Module, loss: str, keep_weight: float = 0.5) -> None:
         super().__init__()
         self.model = model
         self.loss = loss
+        self.keep_weight = keep_weight
 
     def forward(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
         if self.loss == "keep":
-            return keep_loss(self.model, x, y)  # type: ignore[arg-type]
+            return keep_loss(self.model, x, y, self.keep_weight)  # type: ignore[arg-type]
         return nn.functional.mse_loss(self.model(x), y)
 
 
@@ -373,6 +375,8 @@ def train(
     get_preset(config.preset)
     if config.loss not in LOSSES:
         raise EdeflareError(f"unknown loss {config.loss!r}; known: {list(LOSSES)}")
+    if not 0.0 < config.keep_weight < 1.0:
+        raise EdeflareError(f"keep_weight must be in (0, 1), got {config.keep_weight}")
     if config.loss == "keep" and not isinstance(create_model(config.preset), FlareMaskNet):
         raise EdeflareError(f"loss 'keep' trains mask presets (mask.*), not {config.preset!r}")
     env = _dist_env()
@@ -433,7 +437,7 @@ def train(
         for name in ("train_log.csv", "val_log.csv"):
             _truncate_csv(out / name, start)
     # The loss is computed inside the module that DDP wraps, so that its gradients are synced.
-    net: nn.Module = _WithLoss(model, config.loss)
+    net: nn.Module = _WithLoss(model, config.loss, config.keep_weight)
     if env.world > 1:
         net = DistributedDataParallel(
             net, device_ids=[device.index] if device.type == "cuda" else None

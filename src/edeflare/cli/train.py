@@ -51,6 +51,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="mse: of the voxel grids; keep: class-balanced cross-entropy of the per-event keep "
         "decisions (mask presets, on keep-only targets)",
     )
+    p.add_argument(
+        "--keep-weight",
+        type=float,
+        help="--loss keep: the share of the loss on the events to keep (0.5: balanced; "
+        "higher drops only where surer)",
+    )
     p.add_argument("--crop", type=_crop, metavar="HxW", help="random crop size")
     p.add_argument("--seed", type=int)
     p.add_argument("--val-every", type=int)

@@ -191,7 +191,9 @@ def event_keep_mask(
     return v > -np.log(3.0)
 
 
-def keep_loss(net: FlareMaskNet, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+def keep_loss(
+    net: FlareMaskNet, x: torch.Tensor, y: torch.Tensor, keep_weight: float = 0.5
+) -> torch.Tensor:
     r"""Class-balanced cross-entropy of the per-event keep decisions (training ``loss="keep"``).
 
     ``x`` is the input's voxel grid and ``y`` its keep-only target (the subset of
@@ -199,10 +201,12 @@ def keep_loss(net: FlareMaskNet, x: torch.Tensor, y: torch.Tensor) -> torch.Tens
     ``n`` input events of one polarity, ``k = min(n, y^\pm)`` are to be kept
     and ``n - k`` dropped; the network's keep probability there is
     :math:`p = \sigma(\ell + \ln 3)`, which exceeds 1/2 exactly where
-    :func:`event_keep_mask` keeps. The events to keep and those to drop each
-    weigh half of the loss, however rare the flare is in the batch: the
-    mean-squared error of the voxel grids is dominated by the dense light
-    cores and barely sees a scattered flare event.
+    :func:`event_keep_mask` keeps. The events to keep weigh ``keep_weight``
+    of the loss and those to drop the rest (half each by default), however
+    rare the flare is in the batch: the mean-squared error of the voxel grids
+    is dominated by the dense light cores and barely sees a scattered flare
+    event. A ``keep_weight`` above 1/2 makes the mask drop only where it is
+    surer (it keeps more of the scene and of the flare).
 
     Examples
     --------
@@ -210,8 +214,10 @@ def keep_loss(net: FlareMaskNet, x: torch.Tensor, y: torch.Tensor) -> torch.Tens
     >>> x = torch.zeros(1, 1, 2, 8, 8); x[0, 0, 0, 1, 1] = 3; x[0, 0, 1, 6, 6] = -1
     >>> y = x.clone(); y[0, 0, 1, 6, 6] = 0          # drop the OFF event, keep the 3 ON
     >>> # untrained: p = 3/4 everywhere, -(ln(3/4) + ln(1/4)) / 2
-    >>> round(float(keep_loss(net, x, y)), 4)
+    >>> round(keep_loss(net, x, y).item(), 4)
     0.8370
+    >>> round(keep_loss(net, x, y, keep_weight=0.75).item(), 4)  # -(3 ln(3/4) + ln(1/4)) / 4
+    0.5623
     """
     z, g = x[:, 0].float(), y[:, 0].float()
     n = torch.cat([z.clamp(min=0), (-z).clamp(min=0)], 1)
@@ -219,4 +225,4 @@ def keep_loss(net: FlareMaskNet, x: torch.Tensor, y: torch.Tensor) -> torch.Tens
     logit = net.pixel_logits(x) + float(np.log(3.0))
     keep_term = (k * F.logsigmoid(logit)).sum() / k.sum().clamp(min=1)
     drop_term = ((n - k) * F.logsigmoid(-logit)).sum() / (n - k).sum().clamp(min=1)
-    return -(keep_term + drop_term) / 2
+    return -(keep_weight * keep_term + (1.0 - keep_weight) * drop_term)
