@@ -385,7 +385,7 @@ class ModelParams:
         default=None,
         metadata=cli_option(
             "--model",
-            "weights (.safetensors), or an exported .onnx file",
+            "weights (.safetensors), an exported .onnx file, or the name of a bundled model",
             metavar="PATH",
             type=Path,
             convert=str,
@@ -545,7 +545,8 @@ class PFDMethod(Method):
 class ModelMethod(Method):
     """A trained E-DeflareNet (see :class:`~edeflare.models.infer.ModelDeflarer`).
 
-    ``weights=None`` takes the model bundled with the package. Windows are the
+    ``weights=None`` takes the model bundled with the package, a name without a suffix
+    another bundled one (``"night"``: ``assets/night.safetensors``). Windows are the
     model's own (its card's ``window_us``, 20 ms) and are batched
     ``batch_windows`` at a time; decoding is seeded by ``(seed, window start)``.
     """
@@ -572,7 +573,12 @@ class ModelMethod(Method):
             or batch_windows < 1
         ):
             raise ParameterError(f"batch_windows must be a positive int, got {batch_windows!r}")
-        path = bundled_weights() if weights is None else weights
+        if weights is None:
+            path: str | os.PathLike[str] = bundled_weights()
+        elif not Path(weights).suffix and not Path(weights).exists():
+            path = bundled_weights(str(weights))  # a bundled model by name
+        else:
+            path = weights
         self.card = read_card(path)  # fails now on a missing or foreign file
         super().__init__(
             weights=str(path),

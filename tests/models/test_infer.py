@@ -201,3 +201,15 @@ def test_no_event_is_synthesised_outside_the_recordings_span(adding_weights, tmp
     ((_, inner),) = deflarer.windows([(20_000, ev[:2])], size)
     # +1 per cell: the OFF event's cell cancels to 0 (removed), all others gain one ON
     assert len(inner) == 8 * 192 and 35_000 not in inner["t"]
+
+
+def test_the_model_method_takes_a_bundled_model_by_name(monkeypatch, identity_weights):
+    from edeflare.models import infer
+
+    assets = identity_weights.parent
+    monkeypatch.setattr(infer, "_ASSETS", assets)
+    (assets / "night.safetensors").write_bytes(identity_weights.read_bytes())
+    method = create_method("model", weights="night")
+    assert method.params["weights"] == str(assets / "night.safetensors")
+    with pytest.raises(EdeflareError, match="no bundled model 'dusk'"):
+        create_method("model", weights="dusk")
