@@ -25,7 +25,8 @@ for testing; ``eflare-mini`` is a small one for CPU training).
 
 Sequence ``i`` is a pure function of ``(recipe, i)``: its random draws come
 from ``numpy.random.SeedSequence([recipe.seed, i])`` (children: script,
-background, composition, forward model), so any sequence can be regenerated
+background, composition, forward model; sparse sensing from ``(recipe.seed,
+i, 7)``), so any sequence can be regenerated
 alone, on any worker, in any order, and files are byte-identical whatever the
 number of workers (HDF5 stores no timestamps; the compressor is deterministic).
 
@@ -73,12 +74,14 @@ from .._version import __version__
 from ..errors import EventFileError, ParameterError
 from ..events import SensorSize
 from ..io._atomic import atomic_path
-from ..io.sequence import GROUPS, file_sha256, sequence_counts
+from ..io.sequence import GROUPS as FILE_GROUPS
+from ..io.sequence import file_sha256, sequence_counts
 from ..io.sequence import write_sequence as write_file
 from ..sim.background import BackgroundSource
 from ..sim.compose import Components
 from ..sim.optics_scene import OpticsScene
 from ..sim.script import FlareScript
+from ..sim.sensing import sparse_sensing
 from .dsec_flare import DsecWindow
 from .eflare import SequenceInputs, draw_inputs
 from .kinds import STAGES, GenerationError, get_kind
@@ -147,6 +150,12 @@ class SequenceData:
     timings: dict[str, float]
 
 
+GROUPS = tuple(g for g in FILE_GROUPS if g != "gt_full")
+"""The streams of every generated sequence (sparse sensing adds ``gt_full``)."""
+
+_SENSING_STREAM = 7  # the sparse-sensing stage draws from SeedSequence((seed, i, 7))
+
+
 def generate_sequence(
     recipe: Recipe, index: int, *, source: BackgroundSource | None = None
 ) -> SequenceData:
@@ -174,9 +183,21 @@ def generate_sequence(
     index = check_index(recipe, index)
     made = get_kind(recipe.kind).make_sequence(recipe, index, source)
     timings = dict.fromkeys(STAGES, 0.0) | made.seconds
+    streams = made.streams
+    if recipe.sensing.enabled:
+        if recipe.kind != "flare":
+            raise ParameterError(f"sparse sensing applies to flare recipes, not {recipe.kind!r}")
+        streams = sparse_sensing(
+            streams,
+            recipe.sensor_size,
+            0,
+            recipe.sensing,
+            rng=(recipe.seed, index, _SENSING_STREAM),
+            t_end_us=recipe.duration_us,
+        )
     return SequenceData(
         index,
-        made.streams,
+        streams,
         made.components,
         made.provenance,
         made.background,
@@ -192,8 +213,8 @@ def write_sequence(
 ) -> dict[str, Any]:
     """Write one sequence file atomically; return its manifest entry (counts, size, SHA-256)."""
     path = Path(path)
-    groups = GROUPS if recipe.components else ("input", "gt")
-    groups = tuple(g for g in groups if g in data.streams)
+    groups = FILE_GROUPS if recipe.components else ("input", "gt", "gt_full")
+    groups = tuple(g for g in groups if g in data.streams)  # gt_full: sparse sensing only
     attrs = {
         "t_start_us": np.int64(data.t_start_us),
         "t_end_us": np.int64(data.t_end_us),

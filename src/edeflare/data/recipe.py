@@ -30,6 +30,7 @@ from ..sim.compose import AccumulationParams
 from ..sim.optics_scene import OpticsSceneConfig
 from ..sim.pair import PAIR_VARIANTS, WEIGHTS
 from ..sim.script import ScriptConfig
+from ..sim.sensing import SensingConfig
 from .dsec_flare import DsecFlareConfig
 from .kinds import GenerationError, get_kind, list_kinds
 from .sources import make_background_source
@@ -95,6 +96,10 @@ class Recipe:
         Ranges of the optics scenes (kind ``"optics"``).
     dsec : DsecFlareConfig
         DSEC folder and windows (kind ``"dsec"``).
+    sensing : SensingConfig
+        The sparse-sensing stage (:mod:`edeflare.sim.sensing`; kind ``"flare"``,
+        off unless ``enabled``): scattered light sensed as scattered events, the
+        keep-only target ``gt`` and the simulator's own as ``gt_full``.
 
     Examples
     --------
@@ -128,6 +133,7 @@ class Recipe:
     kind: str = "flare"
     optics: OpticsSceneConfig = field(default_factory=OpticsSceneConfig)
     dsec: DsecFlareConfig = field(default_factory=DsecFlareConfig)
+    sensing: SensingConfig = field(default_factory=SensingConfig)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -232,6 +238,10 @@ class Recipe:
                 del d[kind.config_field]
         if self.kind == _DEFAULT_KIND:
             del d["kind"]
+        if self.sensing.enabled:
+            d["sensing"] = self.sensing.to_dict()
+        else:  # off: recipes keep the dicts and digests they had before the stage existed
+            del d["sensing"]
         return json.loads(json.dumps(d))
 
     def identity(self) -> dict[str, Any]:
@@ -266,6 +276,7 @@ def _nested() -> dict[str, type]:
         "script": ScriptConfig,
         "scene": SceneConfig,
         "accumulation": AccumulationParams,
+        "sensing": SensingConfig,
     }
     for name in list_kinds():
         kind = get_kind(name)
@@ -282,6 +293,26 @@ def _asdict(value: Any) -> Any:
 # little motion gives the background events to keep).
 _SLOW_STREET = SceneConfig(pan_px_per_s=(10.0, 120.0), zoom_per_s=(0.0, 0.3), shake_px=(0.0, 1.0))
 
+# Calibrated on real recordings (docs/benchmarks.md, "Real against simulated flare"):
+# weaker scattered light, more star filters, lights of 3-28 px that travel, sparse and
+# slow backgrounds up to busy ones, and the sparse-sensing stage.
+_NIGHT_SCRIPT = ScriptConfig(
+    exposure=(2.0, 200.0),
+    glare_level=(0.3, 6.0),
+    ghost_level=(0.3, 4.0),
+    star_probability=0.8,
+    glare_probability=0.7,
+    light_radius_px=(3.0, 28.0),
+    travel_px=(0.0, 260.0),
+)
+_NIGHT_SCENE = SceneConfig(
+    pan_px_per_s=(2.0, 250.0),
+    texture_contrast=(0.05, 0.4),
+    shake_px=(0.0, 1.5),
+    zoom_per_s=(0.0, 0.8),
+    lamps=(0, 5),
+)
+
 RECIPES: Registry[Recipe] = Registry("recipe")
 for _recipe in (
     Recipe(name="eflare-2.7k"),
@@ -297,6 +328,15 @@ for _recipe in (
         scene=_SLOW_STREET,
     ),
     Recipe(name="dsec-flare", kind="dsec", sensor_size=(640, 480)),
+    Recipe(
+        name="eflare-night",
+        sequences=180,
+        test_sequences=12,
+        sensor_size=(346, 260),
+        script=_NIGHT_SCRIPT,
+        scene=_NIGHT_SCENE,
+        sensing=SensingConfig(enabled=True),
+    ),
 ):
     RECIPES.register(_recipe.name, _recipe)
 """Named recipes: the paper's E-Flare-2.7K (synthetic backgrounds unless files are given),
@@ -305,7 +345,10 @@ the optics test sets after E-Flare-R's physical model, ``eflare-r-sim`` (30 sequ
 100 ms at 640x480, the paper's crop: 150 test windows, as E-Flare-R's 150 pairs) and
 ``eflare-r-sim-mini`` (20 at 346x260: 100 test windows); and ``dsec-flare``, the paper's
 DSEC-Flare windows (15 of 100 ms at 640x480 by default) cut from a local DSEC copy
-(``dsec=DsecFlareConfig(root=...)``), without ground truth."""
+(``dsec=DsecFlareConfig(root=...)``), without ground truth; and ``eflare-night`` (180 of
+100 ms at 346x260), the simulator calibrated on real night recordings: weaker scattered
+light, travelling lights of 3-28 px, and the sparse-sensing stage
+(:mod:`edeflare.sim.sensing`), whose ``gt`` is a keep-only target."""
 
 
 def list_recipes() -> list[str]:

@@ -57,8 +57,10 @@ __all__ = [
     "write_sequence",
 ]
 
-GROUPS = ("input", "gt", "flare", "light", "background")
-"""Event groups a sequence file may hold, in the order they are written."""
+GROUPS = ("input", "gt", "gt_full", "flare", "light", "background")
+"""Event groups a sequence file may hold, in the order they are written (``gt_full``:
+the simulator's own ground truth where ``gt`` is a keep-only target,
+:mod:`edeflare.sim.sensing`)."""
 
 
 def write_sequence(

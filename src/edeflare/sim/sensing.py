@@ -1,0 +1,208 @@
+"""Sparse flare sensing: how a real sensor records scattered light, as a stage after the pair.
+
+Measured on real recordings (``benchmarks/flare_stats.py``, docs/benchmarks.md), a
+real sensor fires the pixels of scattered light 2-6 source radii out at 0.02-2 % of
+the source's own rate, while the simulator, whose log-intensity events fire wherever
+the flare dominates a dark pixel, fires them at 10-65 %: solid streaks where real
+ones are scattered single events. The physical cause is the photoreceptor's slow
+response in dim pixels (DVS-Voltmeter's intensity-dependent bandwidth), which fires
+a pixel lit only by scattered light rarely. :func:`sparse_sensing` reproduces the
+measured statistics on a simulated pair, per sequence:
+
+1. **Scattered light is sensed sparsely.** Each flare event of the input (an input
+   event equal to one of the ``flare`` stream's; PNL-ES keeps events unchanged)
+   farther than ``near_px`` from the source's own events of the same ``step_us``
+   survives with probability ``q * min(1, (2 r / d) ** falloff)``: ``q``
+   log-uniform in ``survival`` per sequence, ``d`` the distance from the source's
+   centre and ``r`` its radius (the disc of its pixels) in that step.
+2. **The glow next to the source belongs to it.** Flare events within ``near_px``
+   of the source's events are kept and count as the source: a real sensor
+   records a bright light's immediate glow as part of the blob (the annotations'
+   5 % density rule does the same).
+3. **The source is recorded.** Events of the ``light`` stream missing from the
+   input return: a log photoreceptor does not clip, while the 8-bit flare rendering
+   saturates at the core and leaves a hole there.
+4. **Scattered background activity to keep.** Uniform random events at a rate
+   log-uniform in ``noise_rate`` (events per pixel per second) join the input
+   and the target: real scenes hold scattered events far from any light (noise,
+   flicker on texture), which a de-flarer must not learn to delete.
+
+The target ``gt`` becomes *keep-only*: the input's events that are true (scene,
+source, glow, background activity), a subset of the input, which is what a
+de-flarer that deletes events (the ``mask`` presets) can reach; the simulator's own
+ground truth is kept as ``gt_full``.
+
+Examples
+--------
+>>> from edeflare.events import make_events
+>>> light = make_events([0, 0, 0], [10, 11, 10], [10, 10, 11], [1, 1, 1])
+>>> flare = make_events([5, 6], [12, 40], [10, 40], [1, 0])   # 1 px and 42 px from the light
+>>> gt = make_events([7], [60], [5], [0])
+>>> inp = make_events([5, 6, 7], [12, 40, 60], [10, 40, 5], [1, 0, 0])
+>>> out = sparse_sensing({"input": inp, "gt": gt, "flare": flare, "light": light}, (64, 48),
+...                      0, SensingConfig(survival=(1e-9, 1e-9), noise_rate=(0.0, 0.0)), rng=0)
+>>> out["input"]["x"].tolist()   # far flare gone, light restored, glow and scene kept
+[10, 11, 10, 12, 60]
+>>> out["gt"]["x"].tolist()      # the target: everything left but nothing to remove here
+[10, 11, 10, 12, 60]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import ParameterError
+from ..events import EVENT_DTYPE, SensorSize, check_sensor_size
+
+__all__ = ["SensingConfig", "sparse_sensing"]
+
+
+@dataclasses.dataclass(frozen=True)
+class SensingConfig:
+    """Parameters of :func:`sparse_sensing` (``enabled=False``: the stage is off).
+
+    Examples
+    --------
+    >>> SensingConfig.from_dict({"enabled": True}).survival
+    (0.003, 0.2)
+    """
+
+    enabled: bool = False
+    near_px: int = 2
+    survival: tuple[float, float] = (0.003, 0.2)
+    falloff: float = 2.0
+    noise_rate: tuple[float, float] = (0.3, 20.0)
+    step_us: int = 10_000
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "survival", tuple(float(v) for v in self.survival))
+        object.__setattr__(self, "noise_rate", tuple(float(v) for v in self.noise_rate))
+        lo, hi = self.survival
+        if not 0 < lo <= hi <= 1:
+            raise ParameterError(f"survival must satisfy 0 < low <= high <= 1, got {self.survival}")
+        lo, hi = self.noise_rate
+        if not (0 <= lo <= hi and math.isfinite(hi)) or (lo == 0 < hi):
+            raise ParameterError(
+                f"noise_rate must be (0, 0) or 0 < low <= high (log-uniform), got {self.noise_rate}"
+            )
+        if isinstance(self.near_px, bool) or not isinstance(self.near_px, int) or self.near_px < 0:
+            raise ParameterError(f"near_px must be an int >= 0, got {self.near_px!r}")
+        if not (math.isfinite(self.falloff) and self.falloff >= 0):
+            raise ParameterError(f"falloff must be >= 0, got {self.falloff!r}")
+        if isinstance(self.step_us, bool) or not isinstance(self.step_us, int) or self.step_us < 1:
+            raise ParameterError(f"step_us must be a positive int, got {self.step_us!r}")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> SensingConfig:
+        """Build from a mapping; unknown keys are an error."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ParameterError(f"unknown sensing key(s) {unknown}; valid keys: {sorted(names)}")
+        return cls(**dict(data))
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict."""
+        return {
+            k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()
+        }
+
+
+def _keys(ev: np.ndarray, size: SensorSize) -> np.ndarray:
+    """One int64 per event, equal exactly for equal ``(t, x, y, p)``."""
+    w, h = size
+    return ((ev["t"].astype(np.int64) * w + ev["x"]) * h + ev["y"]) * 2 + ev["p"]
+
+
+def _log_uniform(gen: np.random.Generator, lo: float, hi: float) -> float:
+    return float(np.exp(gen.uniform(np.log(lo), np.log(hi)))) if hi > lo else float(lo)
+
+
+def sparse_sensing(
+    streams: Mapping[str, np.ndarray],
+    sensor_size: SensorSize,
+    t_start_us: int,
+    config: SensingConfig,
+    rng: np.random.Generator | int | tuple[int, ...],
+    *,
+    t_end_us: int | None = None,
+) -> dict[str, np.ndarray]:
+    """Apply the sparse-sensing stage to one simulated sequence (see the module docstring).
+
+    Parameters
+    ----------
+    streams : mapping
+        ``input``, ``gt``, ``flare`` and ``light`` event streams of one sequence.
+    sensor_size : (width, height)
+    t_start_us : int
+        Start of the sequence (the steps of the source's position count from it).
+    config : SensingConfig
+    rng : numpy.random.Generator or seed
+    t_end_us : int, optional
+        End of the sequence, for the background activity (default: the input's last event).
+
+    Returns
+    -------
+    dict
+        ``input`` and ``gt`` replaced (``gt`` keep-only), ``gt_full`` the original
+        ``gt``, and the other streams as given.
+    """
+    size = check_sensor_size(sensor_size)
+    width, height = size
+    missing = [g for g in ("input", "gt", "flare", "light") if g not in streams]
+    if missing:
+        raise ParameterError(f"sparse sensing needs the streams {missing} too")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    inp, light = streams["input"], streams["light"]
+    q = _log_uniform(gen, *config.survival)
+    is_flare = np.isin(_keys(inp, size), _keys(streams["flare"], size))
+    step = (inp["t"].astype(np.int64) - int(t_start_us)) // config.step_us
+    light_step = (light["t"].astype(np.int64) - int(t_start_us)) // config.step_us
+    near = np.zeros(inp.size, dtype=bool)
+    n_steps = int(max(step.max(initial=-1), light_step.max(initial=-1))) + 1
+    cx = np.full(max(n_steps, 1), np.nan)
+    cy, radius = cx.copy(), cx.copy()
+    for k in np.unique(light_step[light_step >= 0]):
+        sel = light[light_step == k]
+        here = np.zeros((height, width), dtype=bool)
+        here[sel["y"], sel["x"]] = True
+        if sel.size >= 20:
+            cx[k], cy[k] = float(sel["x"].mean()), float(sel["y"].mean())
+            radius[k] = max(math.sqrt(np.count_nonzero(here) / math.pi), 2.0)
+        if config.near_px:
+            here = ndimage.binary_dilation(here, iterations=config.near_px)
+        idx = np.flatnonzero(step == k)
+        near[idx] = here[inp["y"][idx], inp["x"][idx]]
+    survival = np.full(inp.size, q)
+    known = np.isfinite(cx)
+    if config.falloff > 0 and known.any() and inp.size:
+        # steps without the source take the nearest step's position
+        steps = np.arange(cx.size)
+        at = steps[known][np.clip(np.searchsorted(steps[known], steps), 0, known.sum() - 1)]
+        s = np.clip(step, 0, cx.size - 1)
+        d = np.hypot(inp["x"] - cx[at][s], inp["y"] - cy[at][s])
+        survival *= np.minimum(1.0, (2 * radius[at][s] / np.maximum(d, 1e-6)) ** config.falloff)
+    drop = is_flare & ~near & (gen.random(inp.size) >= survival)
+    kept = inp[~drop]
+    restored = light[~np.isin(_keys(light, size), _keys(kept, size))]
+    t_end = int(inp["t"][-1]) + 1 if t_end_us is None and inp.size else int(t_end_us or t_start_us)
+    rate = _log_uniform(gen, *config.noise_rate) if config.noise_rate[1] > 0 else 0.0
+    n_noise = int(gen.poisson(rate * width * height * max(t_end - int(t_start_us), 0) / 1e6))
+    noise = np.empty(n_noise, dtype=EVENT_DTYPE)
+    noise["t"] = np.sort(gen.integers(int(t_start_us), max(t_end, int(t_start_us) + 1), n_noise))
+    noise["x"] = gen.integers(0, width, n_noise)
+    noise["y"] = gen.integers(0, height, n_noise)
+    noise["p"] = gen.integers(0, 2, n_noise)
+    new_input = np.concatenate([kept, restored, noise])
+    new_input = new_input[np.argsort(new_input["t"], kind="stable")]
+    true = np.concatenate([streams["gt"], light, inp[is_flare & near], noise])
+    target = new_input[np.isin(_keys(new_input, size), _keys(true, size))]
+    out = dict(streams)
+    out.update(input=new_input, gt=target, gt_full=streams["gt"])
+    return out

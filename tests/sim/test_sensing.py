@@ -1,0 +1,128 @@
+"""Sparse sensing: survival rates, the glow, the restored source, background activity, recipes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edeflare.data.generate import generate_sequence, write_sequence
+from edeflare.data.recipe import RECIPES, Recipe
+from edeflare.errors import ParameterError
+from edeflare.events import EVENT_DTYPE, make_events
+from edeflare.io.dsec import read_dsec
+from edeflare.sim.background import SceneConfig
+from edeflare.sim.sensing import SensingConfig, sparse_sensing
+
+SIZE = (200, 150)
+CX, CY = 100, 75
+
+
+def _events(t, x, y, p) -> np.ndarray:
+    order = np.argsort(t, kind="stable")
+    return make_events(np.asarray(t)[order], np.asarray(x)[order], np.asarray(y)[order],
+                       np.asarray(p)[order])  # fmt: skip
+
+
+def _sequence(rng: np.random.Generator, n_flare: int = 40_000):
+    """A 9x9 source at the centre (one event per pixel per ms for 20 ms), flare events
+    uniform over the sensor, a scene of 500 events; the input lacks the source's core."""
+    xs, ys = np.meshgrid(np.arange(CX - 4, CX + 5), np.arange(CY - 4, CY + 5))
+    ts = np.repeat(np.arange(20) * 1000, xs.size)
+    light = _events(ts, np.tile(xs.ravel(), 20), np.tile(ys.ravel(), 20), np.ones(ts.size, int))
+    flare = _events(rng.integers(0, 20_000, n_flare), rng.integers(0, SIZE[0], n_flare),
+                    rng.integers(0, SIZE[1], n_flare), rng.integers(0, 2, n_flare))  # fmt: skip
+    flare = np.unique(flare)  # one event per (t, x, y, p)
+    gt = _events(rng.integers(0, 20_000, 500), rng.integers(0, 40, 500),
+                 rng.integers(0, 40, 500), rng.integers(0, 2, 500))  # fmt: skip
+    lx, ly = light["x"].astype(int), light["y"].astype(int)
+    core = (np.abs(lx - CX) <= 1) & (np.abs(ly - CY) <= 1)  # clipped: a hole
+    inp = np.concatenate([gt, flare, light[~core]])
+    inp = inp[np.argsort(inp["t"], kind="stable")]
+    return {"input": inp, "gt": gt, "flare": flare, "light": light}
+
+
+def _far(ev: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    d = np.hypot(ev["x"].astype(float) - CX, ev["y"].astype(float) - CY)
+    return (d > lo) & (d <= hi)
+
+
+def _member(ev: np.ndarray, of: np.ndarray) -> np.ndarray:
+    return np.isin(ev.view(np.void), of.view(np.void)) if ev.size else np.zeros(0, bool)
+
+
+def test_far_flare_survives_at_the_drawn_rate_and_the_rest_is_kept(rng):
+    streams = _sequence(rng)
+    cfg = SensingConfig(survival=(0.1, 0.1), falloff=0.0, noise_rate=(0.0, 0.0))
+    out = sparse_sensing(streams, SIZE, 0, cfg, rng=1)
+    flare = streams["flare"]
+    far = flare[_far(flare, 10, np.inf)]
+    far = far[~_member(far, streams["gt"])]  # (an event of both is a true event)
+    survived = _member(far, out["input"]).mean()
+    assert survived == pytest.approx(0.1, abs=0.01)  # about 30,000 far flare events
+    assert _member(streams["gt"], out["input"]).all() and _member(streams["gt"], out["gt"]).all()
+    assert _member(streams["light"], out["input"]).all()  # the clipped core is back
+    assert _member(streams["light"], out["gt"]).all()
+    glow = flare[_far(flare, 0, 6.3)]  # within 2 px of the 9x9 source (its corner: 5.66 + ...)
+    gx, gy = glow["x"].astype(int), glow["y"].astype(int)
+    glow = glow[(np.abs(gx - CX) <= 6) & (np.abs(gy - CY) <= 6)]
+    assert _member(glow, out["input"]).all() and _member(glow, out["gt"]).all()
+    assert _member(out["gt"], out["input"]).all()  # keep-only: a subset of the input
+    assert not _member(far, out["gt"]).any()  # flare to remove is never a target
+    np.testing.assert_array_equal(out["gt_full"], streams["gt"])
+    assert np.all(np.diff(out["input"]["t"]) >= 0)
+
+
+def test_survival_falls_with_distance_beyond_two_radii(rng):
+    streams = _sequence(rng, n_flare=200_000)
+    cfg = SensingConfig(survival=(0.5, 0.5), falloff=2.0, noise_rate=(0.0, 0.0))
+    out = sparse_sensing(streams, SIZE, 0, cfg, rng=2)
+    r = np.sqrt(81 / np.pi)  # the disc of the 9x9 source's pixels
+    flare = streams["flare"]
+    for lo, hi in ((3 * r, 3.5 * r), (8 * r, 9 * r)):
+        ring = flare[_far(flare, lo, hi)]
+        d = np.hypot(ring["x"].astype(float) - CX, ring["y"].astype(float) - CY)
+        expected = np.mean(0.5 * np.minimum(1, (2 * r / d) ** 2))
+        assert _member(ring, out["input"]).mean() == pytest.approx(expected, rel=0.15)
+
+
+def test_background_activity_joins_input_and_target_at_its_rate(rng):
+    streams = _sequence(rng, n_flare=10)
+    cfg = SensingConfig(survival=(1.0, 1.0), noise_rate=(5.0, 5.0))
+    out = sparse_sensing(streams, SIZE, 0, cfg, rng=3, t_end_us=100_000)
+    new = out["input"][~_member(out["input"], streams["input"])]
+    new = new[~_member(new, streams["light"])]  # the added background activity
+    assert new.size == pytest.approx(5.0 * SIZE[0] * SIZE[1] * 0.1, rel=0.05)
+    assert _member(new, out["gt"]).all()  # all of it to keep
+    assert out["input"]["t"].max() < 100_000
+
+
+def test_same_seed_same_output_and_bad_configs_are_refused(rng):
+    streams = _sequence(rng, n_flare=1000)
+    a = sparse_sensing(streams, SIZE, 0, SensingConfig(), rng=(4, 5))
+    b = sparse_sensing(streams, SIZE, 0, SensingConfig(), rng=(4, 5))
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+    for bad in ({"survival": (0.0, 0.1)}, {"noise_rate": (0.0, 3.0)}, {"near_px": -1},
+                {"falloff": float("nan")}, {"step_us": 0}):  # fmt: skip
+        with pytest.raises(ParameterError):
+            SensingConfig(**bad)
+    with pytest.raises(ParameterError, match="unknown sensing key"):
+        SensingConfig.from_dict({"survivl": 0.1})
+    with pytest.raises(ParameterError, match=r"needs the streams \['flare'\]"):
+        sparse_sensing({k: v for k, v in streams.items() if k != "flare"}, SIZE, 0,
+                       SensingConfig(), rng=0)  # fmt: skip
+
+
+def test_a_sensing_recipe_writes_a_keep_only_target_and_the_full_one(tmp_path):
+    recipe = Recipe(name="tiny-night", sequences=1, test_sequences=0, sensor_size=(64, 48),
+                    duration_us=20_000, scene=SceneConfig(fps=1000.0),
+                    sensing=SensingConfig(enabled=True))  # fmt: skip
+    assert Recipe.from_dict(recipe.to_dict()) == recipe
+    data = generate_sequence(recipe, 0)
+    inp, gt = data.streams["input"], data.streams["gt"]
+    assert gt.size <= inp.size and _member(gt, inp).all()
+    write_sequence(tmp_path / "s.h5", data, recipe)
+    np.testing.assert_array_equal(read_dsec(tmp_path / "s.h5", "gt_full")[0],
+                                  data.streams["gt_full"])  # fmt: skip
+    assert RECIPES["eflare-night"].sensing.enabled
+    assert "sensing" not in RECIPES["eflare-mini"].to_dict()  # old digests unchanged
+    assert EVENT_DTYPE == inp.dtype
