@@ -408,6 +408,16 @@ class ModelParams:
         metadata=cli_option("--batch-windows", "20 ms windows per network call", metavar="N"),
     )
     seed: int = 0
+    keep_threshold: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--keep-threshold",
+            "mask models: keep an event above this keep probability (lower keeps more)",
+            metavar="P",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     runtime: str = dataclasses.field(
         default="auto",
         metadata=cli_option(
@@ -559,6 +569,7 @@ class ModelMethod(Method):
         batch_windows: int,
         seed: int,
         runtime: str = "auto",
+        keep_threshold: float | None = None,
     ) -> None:
         from .models.infer import DECODERS, RUNTIMES, bundled_weights
         from .models.weights import read_card
@@ -567,6 +578,8 @@ class ModelMethod(Method):
             raise ParameterError(f"decoder must be one of {DECODERS}, got {decoder!r}")
         if runtime not in RUNTIMES:
             raise ParameterError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
+        if keep_threshold is not None and not 0.0 < keep_threshold < 1.0:
+            raise ParameterError(f"keep_threshold must be in (0, 1), got {keep_threshold!r}")
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -587,6 +600,7 @@ class ModelMethod(Method):
             batch_windows=batch_windows,
             seed=seed,
             runtime=runtime,
+            keep_threshold=keep_threshold,
         )
 
     def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
@@ -601,6 +615,7 @@ class ModelMethod(Method):
             batch_windows=p["batch_windows"],
             seed=seed,
             runtime=p["runtime"],
+            keep_threshold=p["keep_threshold"],
         )
         size = check_sensor_size(sensor_size)
 

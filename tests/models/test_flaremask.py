@@ -50,3 +50,32 @@ def test_per_event_decision_equals_the_dense_gate():
 def test_mask_presets_are_small():
     assert sum(p.numel() for p in create_model("mask.lite").parameters()) == 150_096
     assert create_model("mask.fast").scale == 8
+
+
+def test_keep_threshold_moves_the_decision_and_lower_keeps_a_superset(tmp_path):
+    from edeflare.models.infer import ModelDeflarer
+    from edeflare.models.weights import ModelCard, save_model
+
+    ev = make_events([0, 15], [1, 1], [1, 1], [1, 1])
+    lg = np.zeros((4, 1, 1), np.float32)  # keep probability sigma(0 + ln 3) = 3/4 everywhere
+    assert event_keep_mask(lg, ev, 0, 20, 4, threshold=0.74).all()
+    assert not event_keep_mask(lg, ev, 0, 20, 4, threshold=0.76).any()
+    with pytest.raises(ValueError, match="threshold must be in"):
+        event_keep_mask(lg, ev, 0, 20, 4, threshold=1.0)
+    torch.manual_seed(3)
+    net = create_model("mask.lite")
+    with torch.no_grad():
+        for p in net.parameters():
+            p.add_(0.2 * torch.randn_like(p))
+    path = tmp_path / "m.safetensors"
+    save_model(path, net, ModelCard(preset="mask.lite", keep_threshold=0.3))
+    rng = np.random.default_rng(0)
+    n = 5000
+    t = np.sort(rng.integers(0, 20_000, n))
+    events = make_events(t, rng.integers(0, 64, n), rng.integers(0, 48, n), rng.integers(0, 2, n))
+    kept = {}
+    for threshold in (None, 0.1, 0.3, 0.6):
+        d = ModelDeflarer(path, keep_threshold=threshold)
+        kept[threshold] = {tuple(e) for e in d(events, (64, 48), 0).tolist()}
+    assert kept[None] == kept[0.3]  # the card's threshold is the default
+    assert kept[0.6] < kept[0.3] < kept[0.1]  # strict supersets as the threshold falls

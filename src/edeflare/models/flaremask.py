@@ -152,13 +152,16 @@ def event_keep_mask(
     window_start_us: int,
     window_us: int,
     scale: int,
+    threshold: float = 0.5,
 ) -> np.ndarray:
     """Per-event keep decisions from low-resolution logits ``(2 bins, h, w)``.
 
     The logit of the event's own polarity and bin is interpolated bilinearly at
     the event's pixel centre (as :meth:`FlareMaskNet.forward` upsamples it) and
-    the event is kept where :math:`\\min(1, 2\\sigma(\\ell)) > 1/2`, i.e.
-    :math:`\\ell > -\\ln 3`.
+    the event is kept where its keep probability :math:`\\sigma(\\ell + \\ln 3)`
+    (:func:`keep_loss`'s) exceeds ``threshold``; at 1/2 that is
+    :math:`\\min(1, 2\\sigma(\\ell)) > 1/2`, i.e. :math:`\\ell > -\\ln 3`. A lower
+    threshold keeps more (of the scene, and of the flare).
 
     Examples
     --------
@@ -188,7 +191,9 @@ def event_keep_mask(
         + flat[base, y1 * w + x0] * (1 - ax) * ay
         + flat[base, y1 * w + x1] * ax * ay
     )
-    return v > -np.log(3.0)
+    if not 0.0 < threshold < 1.0:
+        raise ValueError(f"threshold must be in (0, 1), got {threshold}")
+    return v > np.log(threshold / (1.0 - threshold)) - np.log(3.0)
 
 
 def keep_loss(

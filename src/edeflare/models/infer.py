@@ -84,6 +84,10 @@ class ModelDeflarer:
         and torch otherwise; ``"onnx"`` on a ``.safetensors`` file exports the
         network (in memory, once per sensor size) and runs it with ONNX Runtime.
         Encoding and decoding are the same code for both.
+    keep_threshold : float, optional
+        Mask models: an event is kept where its keep probability exceeds this
+        (default: the model card's, 1/2 unless the card says otherwise). Lower
+        keeps more of the scene and of the flare.
     """
 
     def __init__(
@@ -95,6 +99,7 @@ class ModelDeflarer:
         batch_windows: int = 4,
         seed: int = 0,
         runtime: str = "auto",
+        keep_threshold: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -118,6 +123,10 @@ class ModelDeflarer:
         self.model: torch.nn.Module = model
         self.card: ModelCard = card
         self._exported_only = is_onnx
+        threshold = card.keep_threshold if keep_threshold is None else keep_threshold
+        self.keep_threshold = float(threshold)
+        if not 0.0 < self.keep_threshold < 1.0:
+            raise EdeflareError(f"keep_threshold must be in (0, 1), got {self.keep_threshold}")
         self.decoder = decoder
         self.batch_windows = int(batch_windows)
         self.seed = int(seed)
@@ -228,7 +237,8 @@ class ModelDeflarer:
         )
         logits = self._network(feats, sensor_size, True)
         for (start, events), lg in zip(batch, logits, strict=True):
-            yield start, events[event_keep_mask(lg, events, start, w, scale)]
+            keep = event_keep_mask(lg, events, start, w, scale, self.keep_threshold)
+            yield start, events[keep]
 
     def _run(
         self,

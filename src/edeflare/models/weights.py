@@ -54,6 +54,7 @@ class ModelCard:
     seed: int | None = None
     metrics: dict[str, Any] = field(default_factory=dict)
     notes: str = ""
+    keep_threshold: float = 0.5  # mask models: keep an event above this keep probability
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""
