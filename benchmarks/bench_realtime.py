@@ -15,11 +15,11 @@ in a fresh subprocess (model loading included), and reports
 The mask presets also run through ONNX Runtime (``--runtime onnx``: the
 network exported in memory at start-up).
 
-The reference in the same run is the previous bundled model (``unet2d.lite``
-on full-resolution voxel grids, committed before the ``mask`` presets): the
-``speedup`` column is its time over each row's, at the same case. Baselines
-(EFR, PFD-A, PFD-B, and dv-processing's FastDecay where installed) are timed
-on the same files.
+The reference in the same run is the default bundled model (``unet2d.lite``
+on full-resolution voxel grids): the ``speedup`` column is its time over each
+row's, at the same case. ``mask.lite`` runs the bundled ``night`` weights. The
+baselines are timed on the same files: ``raw`` (only reading and writing: the
+I/O floor), EFR, PFD-A, PFD-B, and dv-processing's FastDecay where installed.
 
 Run: ``python benchmarks/bench_realtime.py [--quick]``
 """
@@ -61,7 +61,7 @@ def _weights(tmp: Path, preset: str) -> str:
     from edeflare.models.infer import bundled_weights
     from edeflare.models.weights import ModelCard, load_model, save_model
 
-    for name in ("default", "fast", "previous"):
+    for name in ("default", "night", "fast", "previous"):
         try:
             path = bundled_weights(name)
         except Exception:
@@ -100,7 +100,7 @@ def main() -> None:
             (f"model {p} (onnx)", "model", {"weights": models[p], "runtime": "onnx"})
             for p in ("mask.lite", "mask.fast")
         ]
-        methods += [(m, m, {}) for m in ("efr", "pfd-a", "pfd-b", "dv-fastdecay")]
+        methods += [(m, m, {}) for m in ("raw", "efr", "pfd-a", "pfd-b", "dv-fastdecay")]
         for size, rate in cases:
             src = tmp / f"in_{size[0]}_{rate}.h5"
             write_events(src, random_events(rate, size, 0, 1_000_000, seed=1), size)
