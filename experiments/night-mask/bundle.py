@@ -18,7 +18,7 @@ if __name__ == "__main__":
     scores = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
     card = dataclasses.replace(
         card,
-        command=card.command.replace("/tmp/edata_train4", "DATA").replace("/tmp/exp/run_k4", "RUN"),
+        command=card.command.replace("/tmp/edata_train4", "DATA").replace("/tmp/exp/run_k4f", "RUN"),
         data=DATA,
         keep_threshold=threshold,
         metrics={**card.metrics, **scores},
