@@ -20,7 +20,11 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p = sub.add_parser("export", help=HELP, description=HELP, **kwargs)
     p.add_argument("output", type=Path, help="the .onnx file to write")
     p.add_argument(
-        "--model", type=Path, metavar="PATH", help="weights (.safetensors); default: bundled"
+        "--model",
+        type=Path,
+        metavar="PATH",
+        help="weights (.safetensors) or the name of a bundled model (night); default: the "
+        "default bundled model",
     )
     p.add_argument(
         "--sensor-size",
@@ -49,7 +53,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.output.suffix.lower() != ".onnx":
         raise EdeflareError(f"{args.output}: the output must be a .onnx file")
-    weights = args.model if args.model is not None else bundled_weights()
+    if args.model is None:
+        weights = bundled_weights()
+    elif not args.model.suffix and not args.model.exists():
+        weights = bundled_weights(str(args.model))  # a bundled model by name
+    else:
+        weights = args.model
     source = open_events(args.check, args.sensor_size) if args.check is not None else None
     size = args.sensor_size or (source.sensor_size if source is not None else None)
     if size is None:
