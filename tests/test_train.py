@@ -325,3 +325,39 @@ def test_amp_resume_continues_the_loss_scale_on_gpu(dataset, tmp_path):
     once = torch.load(tmp_path / "once" / "checkpoint.pt", weights_only=True)["scaler"]
     twice = torch.load(part / "checkpoint.pt", weights_only=True)["scaler"]
     assert once == twice
+
+
+@pytest.mark.slow
+def test_a_run_killed_with_sigkill_resumes_to_the_straight_runs_model(dataset, tmp_path):
+    import signal
+    import time
+
+    args = ["train", str(dataset), "--preset", "unet2d.tiny", "--iterations", "200"]
+    args += ["--batch-size", "2", "--crop", "8x8", "--checkpoint-every", "5", "--seed", "3"]
+    straight = subprocess.run(
+        [sys.executable, "-m", "edeflare", *args, "--out", str(tmp_path / "a")],
+        capture_output=True,
+        text=True,
+    )
+    assert straight.returncode == 0, straight.stderr
+    run = tmp_path / "b"
+    child = subprocess.Popen(
+        [sys.executable, "-m", "edeflare", *args, "--out", str(run)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 120
+    while not (run / "checkpoint.pt").exists() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    os.kill(child.pid, signal.SIGKILL)  # just after a checkpoint, or while writing the next
+    child.wait()
+    assert child.returncode == -signal.SIGKILL
+    assert not (run / "model.safetensors").exists()  # it was killed before the end
+    resumed = subprocess.run(
+        [sys.executable, "-m", "edeflare", *args, "--out", str(run)], capture_output=True, text=True
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    a, b = _weights(tmp_path / "a" / "model.safetensors"), _weights(run / "model.safetensors")
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    rows = _log(run / "train_log.csv")
+    assert [int(r["iteration"]) for r in rows] == list(range(10, 201, 10))  # no row twice
