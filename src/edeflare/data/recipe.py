@@ -356,7 +356,8 @@ def list_recipes() -> list[str]:
 
     Examples
     --------
-    >>> list_recipes()
-    ['dsec-flare', 'eflare-2.7k', 'eflare-mini', 'eflare-r-sim', 'eflare-r-sim-mini']
+    >>> list_recipes()  # doctest: +NORMALIZE_WHITESPACE
+    ['dsec-flare', 'eflare-2.7k', 'eflare-mini', 'eflare-night', 'eflare-r-sim',
+     'eflare-r-sim-mini']
     """
     return RECIPES.names()
