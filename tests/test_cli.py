@@ -143,7 +143,9 @@ def test_demo_writes_everything(tmp_path, capsys):
     assert raw.size == inp.size  # the raw row is the input itself
     table = json.loads((out / "metrics.json").read_text())
     values = table["values"]
-    assert set(values) == {"raw", "voxel", "efr", "pfd-a", "pfd-b", "E-DeflareNet"}
+    assert set(values) == {
+        "raw", "voxel", "efr", "pfd-a", "pfd-b", "E-DeflareNet", "night", "dv-fastdecay"
+    }  # fmt: skip
     for name, row in values.items():  # every metric a real number in its range
         assert all(math.isfinite(v) for v in row.values()), name
         assert 0 <= row["r_f1"] <= 1 and row["chamfer"] > 0 and row["mse"] >= 0

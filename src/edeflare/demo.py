@@ -9,6 +9,7 @@ bar, a 100 Hz lamp, a six-spike flare halo) used by benchmarks and tests.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 from pathlib import Path
@@ -32,7 +33,7 @@ DEMO_SEED = 20261122
 
 
 def _demo_methods() -> dict[str, Any]:
-    """Rows of the demo: the baselines and the bundled model.
+    """Rows of the demo: the baselines, the bundled models and (with the dv extra) dv-fastdecay.
 
     Without the bundled weights the demo fails loudly (an installation
     problem), rather than showing a table without its main row.
@@ -49,6 +50,12 @@ def _demo_methods() -> dict[str, Any]:
             f"({exc}); reinstall edeflare"
         ) from None
     methods["E-DeflareNet"] = create_method("model")
+    # The bundled night model (trained for real recordings' sparse flare: on this
+    # simulated scene's dense streaks it removes little), and the filter users already
+    # run where dv-processing is installed (the dv extra).
+    methods["night"] = create_method("model", weights="night")
+    if importlib.util.find_spec("dv_processing") is not None:
+        methods["dv-fastdecay"] = create_method("dv-fastdecay")
     return methods
 
 
