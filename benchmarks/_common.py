@@ -13,6 +13,16 @@ import numpy as np
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
+PEAK_MIB = r"""
+def peak_mib():
+    # VmHWM: this process's own high-water mark (ru_maxrss is carried over from the
+    # parent across fork and exec, so it would report the benchmark's own peak)
+    with open("/proc/self/status") as f:
+        return next(int(l.split()[1]) for l in f if l.startswith("VmHWM")) / 1024
+"""
+"""Source of ``peak_mib()`` for the ``python -c`` children of the benchmarks."""
+
+
 def best_of(fn: Callable[[], object], repeat: int = 3) -> float:
     """Best wall time of ``repeat`` calls (after one warm-up call), in seconds."""
     fn()

@@ -23,15 +23,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
-from _common import random_events, report
+from _common import PEAK_MIB, random_events, report
 
-_CHILD = r"""
+_CHILD = PEAK_MIB + r"""
 import json, sys, time
-def peak_mib():
-    # VmHWM: this process's own high-water mark (ru_maxrss is carried over from the
-    # parent across fork and exec, so it would report the benchmark's own peak)
-    with open("/proc/self/status") as f:
-        return next(int(l.split()[1]) for l in f if l.startswith("VmHWM")) / 1024
 args = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 if args[0] == "read-whole":

@@ -33,15 +33,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _common import random_events, report
+from _common import PEAK_MIB, random_events, report
 
-_CHILD = r"""
+_CHILD = PEAK_MIB + r"""
 import json, sys, time
-def peak_mib():
-    # VmHWM: this process's own high-water mark (ru_maxrss is carried over from the
-    # parent across fork and exec, so it would report the benchmark's own peak)
-    with open("/proc/self/status") as f:
-        return next(int(l.split()[1]) for l in f if l.startswith("VmHWM")) / 1024
 t0 = time.perf_counter()
 from edeflare.deflare import create_method, deflare_file
 src, dst, method, params = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4])

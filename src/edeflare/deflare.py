@@ -571,7 +571,7 @@ class ModelMethod(Method):
         runtime: str = "auto",
         keep_threshold: float | None = None,
     ) -> None:
-        from .models.infer import DECODERS, RUNTIMES, bundled_weights
+        from .models.infer import DECODERS, RUNTIMES, resolve_weights
         from .models.weights import read_card
 
         if decoder not in DECODERS:
@@ -586,12 +586,7 @@ class ModelMethod(Method):
             or batch_windows < 1
         ):
             raise ParameterError(f"batch_windows must be a positive int, got {batch_windows!r}")
-        if weights is None:
-            path: str | os.PathLike[str] = bundled_weights()
-        elif not Path(weights).suffix and not Path(weights).exists():
-            path = bundled_weights(str(weights))  # a bundled model by name
-        else:
-            path = weights
+        path = resolve_weights(weights)
         self.card = read_card(path)  # fails now on a missing or foreign file
         super().__init__(
             weights=str(path),

@@ -49,16 +49,11 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import EdeflareError
     from ..io import open_events
     from ..models.export import export_onnx, onnx_parity
-    from ..models.infer import bundled_weights
+    from ..models.infer import resolve_weights
 
     if args.output.suffix.lower() != ".onnx":
         raise EdeflareError(f"{args.output}: the output must be a .onnx file")
-    if args.model is None:
-        weights = bundled_weights()
-    elif not args.model.suffix and not args.model.exists():
-        weights = bundled_weights(str(args.model))  # a bundled model by name
-    else:
-        weights = args.model
+    weights = resolve_weights(args.model)
     source = open_events(args.check, args.sensor_size) if args.check is not None else None
     size = args.sensor_size or (source.sensor_size if source is not None else None)
     if size is None:

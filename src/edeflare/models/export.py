@@ -47,7 +47,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..errors import EdeflareError
+from ..errors import DependencyError, EdeflareError
 from ..events import SensorSize, check_sensor_size
 from ..io._atomic import atomic_path
 from .flaremask import FlareMaskNet
@@ -78,7 +78,7 @@ def _need(module: str) -> Any:
     try:
         return __import__(module)
     except ImportError:
-        raise EdeflareError(
+        raise DependencyError(
             f"ONNX needs the {module!r} package: pip install 'edeflare[onnx]'"
         ) from None
 

@@ -38,7 +38,7 @@ from .export import OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_mask
 from .weights import ModelCard, load_model
 
-__all__ = ["DECODERS", "RUNTIMES", "ModelDeflarer", "bundled_weights"]
+__all__ = ["DECODERS", "RUNTIMES", "ModelDeflarer", "bundled_weights", "resolve_weights"]
 
 DECODERS = ("keep", "paper")
 RUNTIMES = ("auto", "torch", "onnx")
@@ -56,6 +56,24 @@ def bundled_weights(name: str = "default") -> Path:
             "your own (--model PATH) or a baseline (--method efr, pfd-a, pfd-b, voxel)"
         )
     return path
+
+
+def resolve_weights(weights: str | os.PathLike[str] | None) -> str | os.PathLike[str]:
+    """The weights file meant by ``weights``: the default bundled model for None, a
+    bundled model for a name without a suffix that is not a file, else the path itself.
+
+    Examples
+    --------
+    >>> resolve_weights("night").name
+    'night.safetensors'
+    >>> resolve_weights("run/model.safetensors")
+    'run/model.safetensors'
+    """
+    if weights is None:
+        return bundled_weights()
+    if not Path(weights).suffix and not Path(weights).exists():
+        return bundled_weights(str(weights))
+    return weights
 
 
 def _device(device: str) -> torch.device:
