@@ -8,7 +8,8 @@ process (``edeflare.cli.main``) and reports its peak resident memory
 command's. Streaming holds one chunk and one 20 ms window, so a command's peak
 should not grow with the recording (``--events`` at two sizes shows it).
 
-Run: ``python benchmarks/bench_memory.py [--events 40000000] [--formats .h5 .raw ...]``
+Run: ``python benchmarks/bench_memory.py [--events 40000000] [--formats .h5 .raw ...]
+[--name memory]`` (``--name``: the results file, for a run of some formats only).
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--events", type=int, default=40_000_000)
     parser.add_argument("--formats", nargs="+", default=list(FORMATS))
+    parser.add_argument("--name", default="memory", help="results/<name>.json")
     args = parser.parse_args()
     size = (640, 480)
     rows: list[dict[str, object]] = []
@@ -109,7 +111,7 @@ def main() -> None:
                     out.unlink()
             src.unlink()
     report(
-        "memory",
+        args.name,
         rows,
         ["format", "events", "MB", "command", "peak_mib", "whole_read_mib", "vs_whole", "seconds"],
     )

@@ -53,6 +53,39 @@ def test_raw_row_is_the_mean_over_sequences_of_segment_means(split):
     assert table.best["chamfer"] == "voxel"  # the only ranked row
 
 
+def test_streamed_benchmark_equals_deflaring_whole_sequences_in_memory(split, monkeypatch):
+    """The benchmark streams windows; EFR (outputs stamped in the past) and PFD
+    score exactly as de-flaring each whole input in memory does."""
+    from edeflare.deflare import create_method
+    from edeflare.io.dsec import DsecReader
+
+    largest = []
+    read = DsecReader.read
+
+    def counting_read(self, start=0, stop=None):
+        events = read(self, start, stop)
+        largest.append(events.size)
+        return events
+
+    monkeypatch.setattr(DsecReader, "read", counting_read)
+    benchmark(split, {"pfd-a": "pfd-a"}, progress=False)
+    monkeypatch.setattr(DsecReader, "read", read)
+    # window by window: no read held a whole group (800 input events over three
+    # 20 ms windows); EFR's first pass reads 1 M-event chunks, not windows
+    assert largest and max(largest) < 400
+    result = benchmark(split, {"efr": "efr", "pfd-a": "pfd-a"}, progress=False)
+    for row in ("efr", "pfd-a"):
+        expected = []
+        for path in sorted(split.glob("*.h5")):
+            inp, gt, size, start, end = read_sequence(path)
+            pred = create_method(row)(inp, size)
+            segs = evaluate_streams(gt, pred, size, start_us=start, end_us=end)
+            expected.append(summarize(m for _, m in segs).means)
+        got = result.evaluation.methods[row].means
+        for metric, value in got.items():
+            assert value == pytest.approx(np.mean([e[metric] for e in expected]), nan_ok=True)
+
+
 def test_cli_benchmark_report(split, tmp_path, capsys):
     out = tmp_path / "rep" / "t.md"
     assert main(["benchmark", str(split), "--methods", "raw", "pfd-b", "--report", str(out)]) == 0

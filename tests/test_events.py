@@ -14,6 +14,7 @@ from edeflare.events import (
     check_sensor_size,
     crop,
     empty_events,
+    iter_chunk_windows,
     iter_time_windows,
     make_events,
     merge_events,
@@ -524,3 +525,14 @@ def test_stream_sensor_size():
     assert stream_sensor_size([a, empty_events(), b]) == (10, 8)
     with pytest.raises(EventsError, match="empty"):
         stream_sensor_size([empty_events()])
+
+
+@pytest.mark.parametrize("cuts", [[], [1], [3, 3, 7], [0, 2, 4, 6, 8, 9]])
+def test_iter_chunk_windows_matches_iter_time_windows_for_any_chunking(cuts):
+    ev = make_events([5, 18, 20, 21, 44, 60, 61, 99, 140, 141], [0] * 10, [0] * 10, [1] * 10)
+    chunks = np.split(ev, cuts)
+    for bounds in ({}, {"start_us": 0, "end_us": 200}, {"start_us": 20, "end_us": 100}):
+        want = [(s, w["t"].tolist()) for s, w in iter_time_windows(ev, 20, **bounds)]
+        got = [(s, w["t"].tolist()) for s, w in iter_chunk_windows(chunks, 20, **bounds)]
+        assert got == want
+    assert [s for s, _ in iter_chunk_windows(chunks, 20)] == [0, 20, 40, 60, 80, 100, 120, 140]

@@ -63,6 +63,7 @@ __all__ = [
     "DeflareStats",
     "Method",
     "ModelParams",
+    "StreamRun",
     "Streamer",
     "VoxelParams",
     "create_method",
@@ -792,6 +793,55 @@ class _Reorder:
         return out
 
 
+class StreamRun:
+    """One method streamed over aligned windows: sorted outputs, counts and call timings.
+
+    Shared by :func:`deflare_file` (which writes the outputs) and the benchmark
+    (which scores them window by window), so both run a method the same way.
+    """
+
+    def __init__(
+        self,
+        method: Method,
+        sensor_size: SensorSize,
+        *,
+        rng: np.random.Generator | int | None,
+        prepared: Any,
+        max_lag_us: int | None,
+    ) -> None:
+        self.streamer = method.streamer(sensor_size, rng=rng, prepared=prepared)
+        self.reorder = None if self.streamer.ordered else _Reorder(self.streamer, max_lag_us)
+        self.n_in = 0
+        self.first_t: int | None = None
+        self.last_t: int | None = None
+        self.call_seconds: list[float] = []
+        """Seconds of each ``process`` call and of the final ``flush``."""
+
+    @property
+    def dropped(self) -> int:
+        """Outputs dropped for lagging more than ``max_lag_us`` (EFR only)."""
+        return self.reorder.dropped if self.reorder is not None else 0
+
+    def outputs(
+        self, windows: Iterable[tuple[int, np.ndarray]], window_us: int
+    ) -> Iterator[np.ndarray]:
+        """Feed ``(start_us, events)`` windows in order; yield sorted output chunks."""
+        streamer, reorder = self.streamer, self.reorder
+        for start, events in windows:
+            self.n_in += events.size
+            if events.size:
+                self.first_t = int(events["t"][0]) if self.first_t is None else self.first_t
+                self.last_t = int(events["t"][-1])
+            t_call = time.perf_counter()
+            out = streamer.process(events, start + window_us)
+            self.call_seconds.append(time.perf_counter() - t_call)
+            yield out if reorder is None else reorder.push(out, start + window_us)
+        t_call = time.perf_counter()
+        tail = streamer.flush()
+        self.call_seconds.append(time.perf_counter() - t_call)
+        yield tail if reorder is None else reorder.finish(tail)
+
+
 def deflare_file(
     in_path: str | os.PathLike[str],
     out_path: str | os.PathLike[str],
@@ -893,49 +943,35 @@ def deflare_file(
                     yield chunk
 
             prepared = m.prepare(counted(), size)
-    streamer = m.streamer(size, rng=rng, prepared=prepared)
-    reorder = None if streamer.ordered else _Reorder(streamer, max_lag_us)
-    n_in = 0
-    first_t = last_t = None
-    call_seconds: list[float] = []
+    run = StreamRun(m, size, rng=rng, prepared=prepared, max_lag_us=max_lag_us)
     t_begin = time.perf_counter()
 
-    def outputs(bar: tqdm) -> Iterator[np.ndarray]:
-        nonlocal n_in, first_t, last_t
+    def windows(bar: tqdm) -> Iterator[tuple[int, np.ndarray]]:
         for start, events in src.windows(window_us):
-            n_in += events.size
             bar.update(events.size)
-            if events.size:
-                first_t = int(events["t"][0]) if first_t is None else first_t
-                last_t = int(events["t"][-1])
-            t_call = time.perf_counter()
-            out = streamer.process(events, start + window_us)
-            call_seconds.append(time.perf_counter() - t_call)
-            yield out if reorder is None else reorder.push(out, start + window_us)
-        t_call = time.perf_counter()
-        tail = streamer.flush()
-        call_seconds.append(time.perf_counter() - t_call)
-        yield tail if reorder is None else reorder.finish(tail)
+            yield start, events
 
     desc = m.name or type(m).__name__
     with tqdm(
         total=src.n_events, unit="ev", unit_scale=True, disable=disable, leave=False, desc=desc
     ) as bar:
-        n_out = write_event_chunks(out_path, outputs(bar), size, evt_version=evt_version)
-    dropped = reorder.dropped if reorder is not None else 0
+        n_out = write_event_chunks(
+            out_path, run.outputs(windows(bar), window_us), size, evt_version=evt_version
+        )
+    dropped = run.dropped
     if dropped:
         warnings.warn(
             f"{out_path}: {dropped} output events lagged their input by more than "
             f"max_lag_us={max_lag_us} and were dropped; pass max_lag_us=None for an exact result",
             stacklevel=2,
         )
-    calls_ms = np.asarray(call_seconds) * 1e3
+    calls_ms = np.asarray(run.call_seconds) * 1e3
     return DeflareStats(
-        n_in,
+        run.n_in,
         n_out,
         dropped,
         seconds=time.perf_counter() - t_begin,
-        span_us=0 if first_t is None or last_t is None else last_t - first_t,
+        span_us=0 if run.first_t is None or run.last_t is None else run.last_t - run.first_t,
         latency_ms=(
             float(np.median(calls_ms)),
             float(np.percentile(calls_ms, 95)),

@@ -9,7 +9,7 @@ half-open ``[start, start + length)``.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from typing import Any
 
 import numba
@@ -29,6 +29,7 @@ __all__ = [
     "count_map",
     "crop",
     "empty_events",
+    "iter_chunk_windows",
     "iter_time_windows",
     "make_events",
     "merge_events",
@@ -414,6 +415,63 @@ def iter_time_windows(
     idx = np.searchsorted(events["t"], starts, side="left")
     for k in range(n_windows):
         yield int(starts[k]), events[idx[k] : idx[k + 1]]
+
+
+def iter_chunk_windows(
+    chunks: Iterable[np.ndarray],
+    window_us: int,
+    *,
+    start_us: int | None = None,
+    end_us: int | None = None,
+) -> Iterator[tuple[int, np.ndarray]]:
+    """:func:`iter_time_windows` over a stream that arrives in sorted chunks.
+
+    The chunks' boundaries are arbitrary (a decoder's blocks, a method's
+    outputs); windows are yielded as soon as a later event shows they are
+    complete, so memory stays bounded by one chunk plus one window. Empty
+    windows are yielded too; ``start_us`` defaults to the multiple of
+    ``window_us`` at or below the first event, ``end_us`` to just after the
+    last event.
+
+    Examples
+    --------
+    >>> a = make_events([1, 2], [0, 0], [0, 0], [1, 1])
+    >>> b = make_events([45], [0], [0], [1])
+    >>> [(s, len(w)) for s, w in iter_chunk_windows([a, b], 20)]
+    [(0, 2), (20, 0), (40, 1)]
+    """
+    window_us = int(window_us)
+    if window_us <= 0:
+        raise EventsError(f"window_us must be positive, got {window_us}")
+    pending = np.zeros(0, dtype=EVENT_DTYPE)
+    cur = start_us
+    for chunk in chunks:
+        if not chunk.size:
+            continue
+        if cur is None:
+            cur = window_start_for(int(chunk["t"][0]), window_us)
+        if end_us is not None and cur >= end_us:
+            return
+        pending = np.concatenate([pending, chunk]) if pending.size else chunk
+        last_t = int(pending["t"][-1])
+        # Windows ending at or before the newest timestamp are complete.
+        while cur + window_us <= last_t and (end_us is None or cur < end_us):
+            k = int(np.searchsorted(pending["t"], cur + window_us, side="left"))
+            lo = int(np.searchsorted(pending["t"][:k], cur, side="left"))
+            yield cur, pending[lo:k]
+            pending = pending[k:]
+            cur += window_us
+    if cur is None:
+        return
+    stop = end_us
+    if stop is None:
+        stop = int(pending["t"][-1]) + 1 if pending.size else cur
+    while cur < stop:
+        k = int(np.searchsorted(pending["t"], cur + window_us, side="left"))
+        lo = int(np.searchsorted(pending["t"][:k], cur, side="left"))
+        yield cur, pending[lo:k]
+        pending = pending[k:]
+        cur += window_us
 
 
 def crop(

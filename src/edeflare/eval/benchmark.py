@@ -2,13 +2,17 @@
 
 A dataset split is a folder of sequence files (``input`` and ``gt`` groups,
 see :mod:`edeflare.io.sequence`). For each method (a registered name, with
-parameters) and each sequence, the whole input of the sequence is
-de-flared in memory, cut into the aligned 20 ms segments of the sequence
-span ``[t_start_us, t_end_us)``, and scored against the ground truth with
-:func:`edeflare.eval.metrics.segment_metrics`. Means are over segments, then over
-sequences (as :func:`edeflare.eval.evaluate.evaluate`). Speed is measured per
-method as 20 ms windows per second and real-time factor (processing time
-over stream duration; below 1 is faster than real time), excluding I/O.
+parameters) and each sequence, the input is streamed window by window
+through the method (as ``edeflare deflare`` does), its outputs are cut into
+the aligned 20 ms segments of the sequence span ``[t_start_us, t_end_us)``,
+and each segment is scored against the ground truth's with
+:func:`edeflare.eval.metrics.segment_metrics` as soon as it is complete, so
+memory is bounded by a window, not by the sequence. The results equal
+de-flaring the whole input in memory (a method's streamer and its one-pass
+call agree). Means are over segments, then over sequences (as
+:func:`edeflare.eval.evaluate.evaluate`). Speed is measured per method as
+20 ms windows per second and real-time factor (processing time over stream
+duration; below 1 is faster than real time), excluding reading and scoring.
 """
 
 from __future__ import annotations
@@ -16,16 +20,20 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm import tqdm
 
-from ..deflare import Method, create_method
-from ..io.sequence import list_sequences, read_sequence
-from .evaluate import Evaluation, Summary, combine_summaries, evaluate_streams, summarize
+from ..deflare import Method, StreamRun, create_method
+from ..events import SensorSize, empty_events, iter_chunk_windows
+from ..io import open_events
+from ..io.sequence import list_sequences, sequence_span
+from .evaluate import Evaluation, Summary, combine_summaries, summarize
+from .metrics import SegmentMetrics, segment_metrics
 from .tables import ResultsTable
 
 __all__ = ["BenchmarkResult", "MethodSpeed", "benchmark"]
@@ -114,7 +122,23 @@ def benchmark(
         arguments ``row, path, inputs, gt, output, sensor_size, start_us,
         end_us, window_us``, e.g. to keep a few windows for figures
         (:class:`edeflare.eval.report.FigureCollector`). Rows run in order, all
-        rows of a sequence before the next sequence.
+        rows of a sequence before the next sequence. The hook receives whole
+        streams, so with a hook one sequence's input, ground truth and output
+        are held in memory at a time; without one, only a window is.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.events import make_events
+    >>> from edeflare.io.dsec import write_dsec_groups
+    >>> split = pathlib.Path(tempfile.mkdtemp())
+    >>> gt = make_events([1_000, 25_000], [1, 2], [1, 1], [1, 0])
+    >>> flare = make_events([5_000], [3], [3], [1])
+    >>> write_dsec_groups(split / "s0.h5", {"input": np.sort(np.concatenate([gt, flare]),
+    ...     order="t"), "gt": gt}, (8, 8), {"t_start_us": 0, "t_end_us": 40_000})
+    >>> result = benchmark(split, {"raw": "raw", "pfd-a": "pfd-a"}, progress=False)
+    >>> result.evaluation.methods["raw"].n_segments
+    2
     """
     if isinstance(split, (str, os.PathLike)):
         paths = list_sequences(split)
@@ -131,15 +155,31 @@ def benchmark(
         total=len(paths) * len(built), unit="run", disable=None if progress else True, leave=False
     )
     for k, path in enumerate(paths):
-        inp, gt, size, start, end = read_sequence(path)
+        span = sequence_span(path)
+        if span is None:
+            for row in built:
+                per_file[row][path.stem] = summarize([])
+                bar.update(1)
+            continue
+        size, start, end = span
         windows += -(-(end - start) // window_us)
         stream_us += end - start
         for row, method in built.items():
             bar.set_description(f"{row}: {path.stem}")
-            t0 = time.perf_counter()
-            pred = method(inp, size, rng=seed * 1_000_003 + k)
-            seconds[row] += time.perf_counter() - t0
+            run_seconds, segments, streams = _run_sequence(
+                method,
+                path,
+                size,
+                start,
+                end,
+                window_us=window_us,
+                bins=bins,
+                rng=seed * 1_000_003 + k,
+                keep_streams=on_output is not None,
+            )
+            seconds[row] += run_seconds
             if on_output is not None:
+                inp, gt, pred = streams
                 on_output(
                     row=row,
                     path=path,
@@ -151,10 +191,7 @@ def benchmark(
                     end_us=end,
                     window_us=window_us,
                 )
-            segments = evaluate_streams(
-                gt, pred, size, window_us=window_us, bins=bins, start_us=start, end_us=end
-            )
-            per_file[row][path.stem] = summarize(m for _, m in segments)
+            per_file[row][path.stem] = summarize(segments)
             bar.update(1)
     bar.close()
     evaluation = Evaluation(
@@ -162,3 +199,54 @@ def benchmark(
     )
     speed = {row: MethodSpeed(seconds[row], windows, stream_us) for row in built}
     return BenchmarkResult(evaluation, speed)
+
+
+def _run_sequence(
+    method: Method,
+    path: Path,
+    size: SensorSize,
+    start: int,
+    end: int,
+    *,
+    window_us: int,
+    bins: int,
+    rng: int,
+    keep_streams: bool,
+) -> tuple[float, list[SegmentMetrics], tuple[np.ndarray, ...]]:
+    """Stream one sequence through one method, scoring each segment once complete.
+
+    Returns the method's seconds (prepass, ``process`` and ``flush`` calls),
+    the segments' metrics, and the whole input, ground truth and output when
+    ``keep_streams`` (else an empty tuple).
+    """
+    src_in = open_events(path, group="input")
+    src_gt = open_events(path, group="gt")
+    t0 = time.perf_counter()
+    prepared = method.prepare(src_in.chunks(), size) if method.needs_prepass else None
+    prepass_seconds = time.perf_counter() - t0
+    # max_lag_us=None: exact whatever EFR's lag (a sequence's held outputs only).
+    run = StreamRun(method, size, rng=rng, prepared=prepared, max_lag_us=None)
+    kept: dict[str, list[np.ndarray]] = {"input": [], "gt": [], "output": []}
+
+    def inputs() -> Iterator[tuple[int, np.ndarray]]:
+        for w_start, events in src_in.windows(window_us, start_us=start, end_us=end):
+            if keep_streams:
+                kept["input"].append(events)
+            yield w_start, events
+
+    outputs = iter_chunk_windows(
+        run.outputs(inputs(), window_us), window_us, start_us=start, end_us=end
+    )
+    segments = []
+    pairs = zip(src_gt.windows(window_us, start_us=start, end_us=end), outputs, strict=True)
+    for (w_start, gt), (_, pred) in pairs:
+        if keep_streams:
+            kept["gt"].append(gt)
+            kept["output"].append(pred)
+        segments.append(segment_metrics(gt, pred, size, w_start, window_us, bins=bins))
+    streams = (
+        tuple(np.concatenate(kept[k]) if kept[k] else empty_events() for k in kept)
+        if keep_streams
+        else ()
+    )
+    return prepass_seconds + sum(run.call_seconds), segments, streams

@@ -35,6 +35,7 @@ from ..events import (
     SensorSize,
     check_events,
     check_sensor_size,
+    iter_chunk_windows,
     window_start_for,
 )
 from ._atomic import AtomicFile
@@ -344,33 +345,7 @@ class EventSource:
         if self._format.opener is None:
             yield from self._dsec_windows(window_us, start_us, end_us)
             return
-        pending = np.zeros(0, dtype=EVENT_DTYPE)
-        cur = start_us
-        for chunk in self.chunks():
-            if cur is None:
-                cur = window_start_for(int(chunk["t"][0]), window_us)
-            if end_us is not None and cur >= end_us:
-                return
-            pending = np.concatenate([pending, chunk]) if pending.size else chunk
-            last_t = int(pending["t"][-1])
-            # Windows ending at or before the newest timestamp are complete.
-            while cur + window_us <= last_t and (end_us is None or cur < end_us):
-                k = int(np.searchsorted(pending["t"], cur + window_us, side="left"))
-                lo = int(np.searchsorted(pending["t"][:k], cur, side="left"))
-                yield cur, pending[lo:k]
-                pending = pending[k:]
-                cur += window_us
-        if cur is None:
-            return
-        stop = end_us
-        if stop is None:
-            stop = int(pending["t"][-1]) + 1 if pending.size else cur
-        while cur < stop:
-            k = int(np.searchsorted(pending["t"], cur + window_us, side="left"))
-            lo = int(np.searchsorted(pending["t"][:k], cur, side="left"))
-            yield cur, pending[lo:k]
-            pending = pending[k:]
-            cur += window_us
+        yield from iter_chunk_windows(self.chunks(), window_us, start_us=start_us, end_us=end_us)
 
     def _dsec_windows(
         self, window_us: int, start_us: int | None, end_us: int | None
