@@ -14,7 +14,6 @@ from edeflare.eval.flare_score import (
     event_energy,
     flare_geometry,
     flare_score,
-    locate_source,
 )
 from edeflare.events import make_events
 
@@ -71,10 +70,16 @@ def test_geometry_from_the_input_scores_other_streams_on_the_same_regions():
     assert math.isnan(flare_score(np.zeros((H, W)), g))  # nothing at the source
 
 
-def test_locate_prefers_a_compact_bright_region_over_hot_pixels():
+def test_geometry_prefers_a_compact_bright_region_over_hot_pixels():
     e = _source(40, 80, r=4, level=5.0)
     e[10, 150] = 200.0  # one hot pixel, more than the source's peak but less in total
-    assert locate_source(e, 5.0) == (40, 80)
+    e[11, 150] = 200.0  # two of them: still not a region
+    assert flare_geometry(e, source_radius_px=2.5).center == (40, 80)
+
+
+def test_geometry_of_an_empty_map_scores_nan_not_an_error():
+    g = flare_geometry(np.zeros((H, W)))
+    assert math.isnan(flare_score(np.zeros((H, W)), g))
 
 
 def test_on_events_of_the_procedural_scene():

@@ -8,12 +8,13 @@ such as the event counts of a window (:func:`event_energy`) or the magnitude
 
 Definition (:func:`flare_score`):
 
-1. **Source.** The centre ``c`` is the maximum of ``E`` smoothed by a
-   Gaussian of standard deviation ``2 r_s`` (the brightest compact region:
-   a few hot pixels do not win, and the flare spread around the source
-   centres on it; ties go to the first pixel in row-major order) -- see
-   :func:`locate_source`. Compare streams on the same geometry: locate the
-   source once, on the input, and score every stream with it.
+1. **Source.** The centre ``c`` is the brightest compact region of ``E``,
+   found by the project's one light-source detector,
+   :func:`edeflare.realworld.detect_light_source` (3x3 median against hot
+   pixels, a Gaussian of standard deviation ``2 r_s``, the region above
+   half its maximum; its centroid, rounded). Compare streams on the same
+   geometry: locate the source once, on the input, and score every stream
+   with it.
 2. **Regions.** With ``d`` the distance to ``c``: the *source* disc
    ``d <= r_s``, the *flare* annulus ``r_s < d <= r_f``, the *far field*
    ``d > r_f``. Defaults: ``r_s = max(2, 0.04 min(W, H))``,
@@ -39,17 +40,16 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from ..errors import ParameterError
 from ..events import SensorSize, count_map
+from ..realworld.geometry import detect_light_source
 
 __all__ = [
     "FlareGeometry",
     "event_energy",
     "flare_geometry",
     "flare_score",
-    "locate_source",
     "region_energies",
 ]
 
@@ -105,27 +105,6 @@ def _default_radii(
     return rs, rf
 
 
-def locate_source(energy: np.ndarray, sigma_px: float) -> tuple[int, int]:
-    """``(x, y)`` of the brightest compact region: the maximum of ``energy`` smoothed.
-
-    The smoothing is a Gaussian of standard deviation ``sigma_px`` (zero
-    padding at the borders).
-
-    Examples
-    --------
-    >>> e = np.zeros((20, 30)); e[5, 25] = 9.0; e[10:13, 3:6] = 2.0  # a hot pixel, a blob
-    >>> locate_source(e, 2)
-    (4, 11)
-    """
-    energy = _check_energy(energy)
-    if not (math.isfinite(sigma_px) and sigma_px > 0):
-        raise ParameterError(f"sigma_px must be a positive number, got {sigma_px!r}")
-    smooth = ndimage.gaussian_filter(energy, sigma=float(sigma_px), mode="constant")
-    # Rounding makes ties between mirror-symmetric positions exact (first one wins).
-    y, x = np.unravel_index(int(np.argmax(np.round(smooth, 9))), smooth.shape)
-    return int(x), int(y)
-
-
 def flare_geometry(
     energy: np.ndarray,
     *,
@@ -142,7 +121,11 @@ def flare_geometry(
     """
     energy = _check_energy(energy)
     rs, rf = _default_radii(energy.shape, source_radius_px, flare_radius_px)
-    return FlareGeometry(locate_source(energy, 2.0 * rs), rs, rf)
+    try:
+        (light,) = detect_light_source(energy, sigma_px=2.0 * rs, max_sources=1, min_area_px=1)
+    except ParameterError:  # no energy left after the median filter: nothing to centre on
+        return FlareGeometry((energy.shape[1] // 2, energy.shape[0] // 2), rs, rf)
+    return FlareGeometry((round(light.cx), round(light.cy)), rs, rf)
 
 
 def flare_score(
