@@ -32,7 +32,7 @@ from edeflare.errors import EdeflareError
 from edeflare.eval.benchmark import benchmark
 from edeflare.events import check_events
 from edeflare.io import write_events
-from edeflare.io.sequence import list_sequences
+from edeflare.io.sequence import list_sequences, read_frames
 from edeflare.sim.background import NightStreet
 from edeflare.sim.optics import PSFConfig
 from edeflare.sim.optics_scene import (
@@ -254,11 +254,16 @@ def test_files_follow_the_dataset_contract(reference):
     for entry in manifest["files"]:
         assert entry["split"] == "test" and set(entry["events"]) == {"input", "gt"}
         with h5py.File(out / entry["file"]) as f:
-            assert set(f) == {"input", "gt"}
+            assert set(f) == {"input", "gt", "frames"}
             assert f.attrs["kind"] == "optics" and "variant" not in f.attrs
             assert (int(f.attrs["t_start_us"]), int(f.attrs["t_end_us"])) == (0, 20_000)
             scene = OpticsScene.from_json(f.attrs["script"])
         assert scene == generate_sequence(TINY, entry["index"]).script
+        # the clean lens's images at the windows' ends: ground truth for reconstructions
+        times, images = read_frames(out / entry["file"])
+        assert times.tolist() == list(range(TINY.window_us, 20_001, TINY.window_us))
+        assert images.shape == (times.size, 48, 64) and images.max() <= 255.0
+        assert images.min() >= 0.0 and images.std() > 0
     windows = PairedWindows(list_sequences(out / "test"))
     x, y = windows[0]
     assert len(windows) == 3 and x.shape == y.shape == (1, 8, 48, 64)

@@ -67,9 +67,11 @@ def optics_sequence(
 
     Returns
     -------
-    (streams, scene, background, seconds)
+    (streams, scene, background, seconds, frames)
         ``{"input", "gt"} -> events``, the drawn :class:`OpticsScene`, the
-        background's JSON-ready description, and seconds per stage.
+        background's JSON-ready description, seconds per stage, and the clean
+        lens's images at the windows' ends, ``(times_us, (T, H, W))`` (None
+        with a recorded background).
 
     Examples
     --------
@@ -79,9 +81,9 @@ def optics_sequence(
     >>> r = dataclasses.replace(RECIPES["eflare-r-sim-mini"], sensor_size=(48, 32),
     ...                         duration_us=2_000, window_us=1_000,
     ...                         optics=OpticsSceneConfig(psf_grid=64))
-    >>> streams, scene, bg, _ = optics_sequence(r, 0)
-    >>> sorted(streams), bg["kind"], scene.duration_us
-    (['gt', 'input'], 'synthetic', 2000)
+    >>> streams, scene, bg, _, (times, images) = optics_sequence(r, 0)
+    >>> sorted(streams), bg["kind"], scene.duration_us, times.tolist(), images.shape
+    (['gt', 'input'], 'synthetic', 2000, [1000, 2000], (2, 32, 48))
     """
     size, duration = recipe.sensor_size, recipe.duration_us
     t0 = time.perf_counter()
@@ -100,11 +102,13 @@ def optics_sequence(
         background = NightStreet(size, recipe.scene, rng=np.random.default_rng(s_bg))
         description = {"kind": "synthetic", "duration_us": duration, "scene": background.describe()}
     drawn = time.perf_counter() - t0
+    ends = np.arange(recipe.window_us, duration + 1, recipe.window_us, dtype=np.int64)
     pair = simulate_optics_pair(
-        scene, size, background=background, rng=np.random.default_rng(s_pair)
+        scene, size, background=background, rng=np.random.default_rng(s_pair), frame_times_us=ends
     )
     seconds = {"background": drawn, **pair.seconds}
-    return {"input": pair.input, "gt": pair.gt}, scene, description, seconds
+    frames = None if pair.frames is None else (ends, pair.frames)
+    return {"input": pair.input, "gt": pair.gt}, scene, description, seconds, frames
 
 
 @register_kind(
@@ -122,5 +126,5 @@ def _make_sequence(
         source = source or cached_source(recipe)
     else:
         source = None
-    streams, scene, background, seconds = optics_sequence(recipe, index, source)
-    return KindSequence(streams, scene, background, seconds)
+    streams, scene, background, seconds, frames = optics_sequence(recipe, index, source)
+    return KindSequence(streams, scene, background, seconds, frames=frames)

@@ -137,6 +137,8 @@ class SequenceData:
     t_start_us, t_end_us : int
     timings : dict
         Seconds per stage (:data:`STAGES`).
+    frames : (times_us, images) or None
+        The clean scene's images at the windows' ends (kind ``"optics"``).
     """
 
     index: int
@@ -148,6 +150,7 @@ class SequenceData:
     t_start_us: int
     t_end_us: int
     timings: dict[str, float]
+    frames: tuple[np.ndarray, np.ndarray] | None = None
 
 
 GROUPS = tuple(g for g in FILE_GROUPS if g != "gt_full")
@@ -205,6 +208,7 @@ def generate_sequence(
         0,
         recipe.duration_us,
         timings,
+        made.frames,
     )
 
 
@@ -230,7 +234,7 @@ def write_sequence(
     if recipe.kind != "flare":  # no composition variant; say what the file is instead
         del attrs["variant"]
         attrs["kind"] = recipe.kind
-    write_file(path, {g: data.streams[g] for g in groups}, data.sensor_size, attrs)
+    write_file(path, {g: data.streams[g] for g in groups}, data.sensor_size, attrs, data.frames)
     return _entry(path, recipe, data.index)
 
 

@@ -89,6 +89,9 @@ class KindSequence:
         Seconds per stage.
     components : object, optional
         The pure streams and their weights (kind ``"flare"``).
+    frames : (times_us, images), optional
+        The clean scene's intensity images at the windows' ends (kind
+        ``"optics"`` with a synthetic street), for reconstruction benchmarks.
     """
 
     streams: dict[str, np.ndarray]
@@ -96,6 +99,7 @@ class KindSequence:
     background: dict[str, Any]
     seconds: dict[str, float]
     components: Any = None
+    frames: tuple[np.ndarray, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)

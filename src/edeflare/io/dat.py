@@ -3,7 +3,7 @@
 faery refuses DAT files whose event type byte is 0x00 ("Event2d", written by
 the ATIS/Chronocam tools and found in N-CARS and tonic's samples) and reads
 only type 0x0C ("CD"). Both share one layout, so we decode them ourselves,
-memory-mapped and chunked::
+read in chunks::
 
     % text header lines (``% Width 304``, ``% Height 240``, ``% Version 2``...)
     uint8 event type, uint8 event size (8)
@@ -87,36 +87,38 @@ def open_dat(
     n = body // _RECORD.itemsize
 
     def chunks() -> Iterator[np.ndarray]:
-        if n == 0:
-            return
-        records = np.memmap(path, dtype=_RECORD, mode="r", offset=offset, shape=(n,))
         wraps = 0
         last = None
-        for start in range(0, n, _CHUNK):
-            block = records[start : start + _CHUNK]
-            t32 = block["t"].astype(np.int64)
-            data = block["data"]
-            # unwrap 32-bit time: each large backwards jump is one wrap
-            prev = t32[0] if last is None else last
-            jumps = np.diff(t32, prepend=prev) < -(1 << 31)
-            t = t32 + ((wraps + np.cumsum(jumps)) << 32)
-            wraps += int(jumps.sum())
-            last = int(t32[-1])
-            out = np.empty(block.size, dtype=EVENT_DTYPE)
-            out["t"] = t + t0
-            if version == "1":
-                out["x"] = data & 0x1FF
-                out["y"] = (data >> 9) & 0xFF
-                out["p"] = (data >> 17) & 1
-            else:
-                out["x"] = data & 0x3FFF
-                out["y"] = (data >> 14) & 0x3FFF
-                pol = data >> 28
-                if pol.size and pol.max() > 1:
-                    raise EventFileError(path, "polarity nibble other than 0/1: not a TD file?")
-                out["p"] = pol
-            yield out
-        del records
+        # Read block by block rather than through a memory map: a map's pages
+        # stay in the resident set, which then grows with the file.
+        with open(path, "rb") as f:
+            f.seek(offset)
+            for start in range(0, n, _CHUNK):
+                block = np.fromfile(f, dtype=_RECORD, count=min(_CHUNK, n - start))
+                if block.size < min(_CHUNK, n - start):
+                    raise EventFileError(path, "truncated while reading")
+                t32 = block["t"].astype(np.int64)
+                data = block["data"]
+                # unwrap 32-bit time: each large backwards jump is one wrap
+                prev = t32[0] if last is None else last
+                jumps = np.diff(t32, prepend=prev) < -(1 << 31)
+                t = t32 + ((wraps + np.cumsum(jumps)) << 32)
+                wraps += int(jumps.sum())
+                last = int(t32[-1])
+                out = np.empty(block.size, dtype=EVENT_DTYPE)
+                out["t"] = t + t0
+                if version == "1":
+                    out["x"] = data & 0x1FF
+                    out["y"] = (data >> 9) & 0xFF
+                    out["p"] = (data >> 17) & 1
+                else:
+                    out["x"] = data & 0x3FFF
+                    out["y"] = (data >> 14) & 0x3FFF
+                    pol = data >> 28
+                    if pol.size and pol.max() > 1:
+                        raise EventFileError(path, "polarity nibble other than 0/1: not a TD file?")
+                    out["p"] = pol
+                yield out
 
     return recorded, chunks()
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import contextlib
 import os
 import struct
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -508,13 +508,15 @@ def write_dsec_groups(
     streams: dict[str, np.ndarray],
     sensor_size: SensorSize,
     attrs: dict[str, object] | None = None,
+    datasets: Mapping[str, np.ndarray] | None = None,
 ) -> None:
     """Write several streams to one file, each in the DSEC layout under its own group.
 
     ``streams["input"]`` lands in ``/input/events/{x,y,p,t}``,
     ``/input/ms_to_idx`` and ``/input/t_offset``; read it back with
     ``DsecReader(path, group="input/events")``. Root attributes: ``sensor_size``
-    plus ``attrs`` (strings or numbers). Written atomically.
+    plus ``attrs`` (strings or numbers). ``datasets`` adds other arrays by
+    path (e.g. ``"frames/t_us"``), compressed like the events. Written atomically.
 
     Examples
     --------
@@ -544,6 +546,10 @@ def write_dsec_groups(
                     stream.finish()
                 except ValueError as exc:
                     raise EventFileError(path, f"stream {name!r}: {exc}") from None
+            for name, array in (datasets or {}).items():
+                array = np.asarray(array)
+                chunked = array.ndim > 0 and array.size > 0
+                f.create_dataset(name, data=array, **(_compression() if chunked else {}))
         atomic.commit()
     except OSError as exc:
         raise EventFileError(path, f"cannot write ({exc})") from None

@@ -8,6 +8,9 @@ DSEC layout under its own group (:func:`edeflare.io.dsec.write_dsec_groups`):
 - ``flare``, ``light``, ``background``: the pure streams of a simulated sample
   (optional, so other compositions can be rebuilt);
 
+optionally ``frames/t_us`` and ``frames/intensity`` (float16 ``(T, H, W)``):
+the clean scene's intensity image (0-255 scale) at the given instants, the
+ground truth of reconstructions (simulated test sets, :func:`read_frames`);
 and root attributes ``sensor_size`` and ``t_start_us`` / ``t_end_us`` (the
 span ``[t_start_us, t_end_us)``; its aligned windows start at ``t_start_us``;
 without them the span is that of the events), plus the writer's provenance
@@ -51,6 +54,7 @@ __all__ = [
     "check_paired",
     "file_sha256",
     "list_sequences",
+    "read_frames",
     "read_sequence",
     "sequence_counts",
     "sequence_span",
@@ -68,11 +72,14 @@ def write_sequence(
     streams: Mapping[str, np.ndarray],
     sensor_size: SensorSize,
     attrs: Mapping[str, Any],
+    frames: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> None:
     """Write a sequence file atomically: ``streams`` (group -> events) and root ``attrs``.
 
     ``attrs`` must hold ``t_start_us`` and ``t_end_us`` (stored as int64); the
     other attributes are the writer's provenance, stored in the order given.
+    ``frames``: ``(times_us (T,), images (T, H, W))``, the clean scene's
+    intensity images (stored as float16).
 
     Raises
     ------
@@ -91,7 +98,50 @@ def write_sequence(
         raise ParameterError(f"need t_end_us > t_start_us, got [{start}, {end})")
     stored = dict(attrs)
     stored["t_start_us"], stored["t_end_us"] = np.int64(start), np.int64(end)
-    write_dsec_groups(path, dict(streams), sensor_size, stored)
+    datasets = None
+    if frames is not None:
+        times, images = np.asarray(frames[0], dtype=np.int64), np.asarray(frames[1])
+        width, height = sensor_size
+        if times.ndim != 1 or images.shape != (times.size, height, width):
+            raise ParameterError(
+                f"frames must be (T,) times and (T, {height}, {width}) images, "
+                f"got {times.shape} and {images.shape}"
+            )
+        if not np.isfinite(images).all():
+            raise ParameterError("frames hold NaN or infinite values")
+        datasets = {"frames/t_us": times, "frames/intensity": images.astype(np.float16)}
+    write_dsec_groups(path, dict(streams), sensor_size, stored, datasets)
+
+
+def read_frames(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The clean scene's images of a sequence: ``(times_us, float32 (T, H, W))``, or None.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.events import make_events
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "seq.h5"
+    >>> ev = make_events([10], [0], [0], [1])
+    >>> write_sequence(path, {"input": ev}, (2, 1), {"t_start_us": 0, "t_end_us": 20},
+    ...                frames=([20], np.full((1, 1, 2), 3.0)))
+    >>> times, images = read_frames(path)
+    >>> times.tolist(), images.tolist()
+    ([20], [[[3.0, 3.0]]])
+    """
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            if "frames" not in f:
+                return None
+            times = np.asarray(f["frames/t_us"][()], dtype=np.int64)
+            images = np.asarray(f["frames/intensity"][()], dtype=np.float32)
+    except (OSError, KeyError, ValueError, RuntimeError) as exc:
+        raise EventFileError(path, f"cannot read its frames ({exc})") from None
+    if images.ndim != 3 or images.shape[0] != times.size:
+        raise EventFileError(
+            path, f"frames of shape {images.shape} do not match {times.size} times"
+        )
+    return times, images
 
 
 def list_sequences(folder: str | os.PathLike[str]) -> list[Path]:

@@ -35,7 +35,7 @@ from ..events import EVENT_DTYPE, SensorSize, make_events
 
 __all__ = ["open_npz", "open_text", "write_npz", "write_txt"]
 
-_TEXT_CHUNK_LINES = 1 << 20
+_TEXT_CHUNK_LINES = 1 << 18  # lines per chunk: the parse holds a few copies of a chunk
 
 
 _NPZ_CHUNK = 1 << 20  # events per chunk when streaming an archive

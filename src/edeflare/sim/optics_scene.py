@@ -61,7 +61,7 @@ import copy
 import dataclasses
 import json
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -83,7 +83,7 @@ from .compose import Components, compose_pair
 from .dvs import DVS346_K, IdealParams, VoltmeterParams
 from .flare import WHITE, light_source, scattering_flare
 from .optics import PSFConfig, psf_pair
-from .pair import EventRecorder, StageTimer, run_frames
+from .pair import EventRecorder, FrameRecorder, StageTimer, run_frames
 from .render import _warp_add
 from .script import SensorSpec, sensor_spec_from_dict
 
@@ -680,11 +680,16 @@ class OpticsPair:
         :math:`E_{ob}` and :math:`E_{gt}`, sorted, times in ``[0, duration_us)``.
     seconds : dict
         Seconds spent per stage: ``render``, ``simulate``, ``compose``.
+    frames : numpy.ndarray or None
+        float32 ``(T, H, W)``: the clean lens's intensity image (the scene the
+        ground truth sees, 0-255 scale) at each of ``frame_times_us``; None
+        when none were asked for or the background is recorded (no image of it).
     """
 
     input: np.ndarray
     gt: np.ndarray
     seconds: dict[str, float]
+    frames: np.ndarray | None = None
 
 
 def _noise(rate_hz: float, size: SensorSize, duration_us: int, gen: np.random.Generator):
@@ -705,6 +710,7 @@ def simulate_optics_pair(
     *,
     background: NightStreet | Background | None = None,
     rng: np.random.Generator | int | None = None,
+    frame_times_us: Sequence[int] | np.ndarray | None = None,
 ) -> OpticsPair:
     r"""Simulate :math:`E_{ob}` and :math:`E_{gt}` of one scene (see the module docstring).
 
@@ -718,6 +724,10 @@ def simulate_optics_pair(
         (the sources in the dark).
     rng : numpy.random.Generator or int, optional
         Draws the street's background-activity noise or the PNL-ES draws.
+    frame_times_us : sequence of int, optional
+        Keep the clean lens's image at these instants (sorted), e.g. the
+        windows' ends: ground truth for reconstructions (``OpticsPair.frames``).
+        Ignored with a recorded background.
 
     Returns
     -------
@@ -760,7 +770,11 @@ def simulate_optics_pair(
                 images = list(renderer.frame(t))
             yield t, dict(zip(_LENSES, images, strict=True))
 
-    run_frames(frames(), recorders, timer=timer)
+    snapshots = (
+        FrameRecorder(frame_times_us, "gt") if frame_times_us is not None and not recorded else None
+    )
+    observers = [*recorders, snapshots] if snapshots is not None else recorders
+    run_frames(frames(), observers, timer=timer)
     duration = scene.duration_us
     with timer("compose"):
         ob, gt = (rec.events(duration) for rec in recorders)
@@ -780,4 +794,4 @@ def simulate_optics_pair(
                 duration,
             )
             ob, gt = compose_pair(components, "physical", rng=gen)
-    return OpticsPair(ob, gt, timer.seconds)
+    return OpticsPair(ob, gt, timer.seconds, snapshots.images if snapshots is not None else None)

@@ -66,6 +66,7 @@ __all__ = [
     "EventRecorder",
     "EventSampler",
     "FrameObserver",
+    "FrameRecorder",
     "SimulatedPair",
     "StageTimer",
     "StreamSampler",
@@ -281,6 +282,57 @@ class EventSampler:
         if last is not None and self._done < self.events.size:
             sel = self.events[self._done :]
             self.values[self._done :] = last[1][self.video][sel["y"], sel["x"]]
+
+
+class FrameRecorder:
+    """A video's frames at given instants, linear in time between the frames around each.
+
+    Instants after the last frame get the last frame (held); the result,
+    :attr:`images`, is float32 ``(len(times_us), H, W)``. The simulator keeps
+    only two frames at a time, so this is how a pair's ground-truth images
+    (the clean scene at each window's end) are kept.
+
+    Examples
+    --------
+    >>> rec = FrameRecorder([500, 2000], "v")
+    >>> video = [(0, {"v": np.zeros((1, 1))}), (1000, {"v": np.full((1, 1), 4.0)})]
+    >>> _ = run_frames(video, [rec])
+    >>> rec.images[:, 0, 0].tolist()
+    [2.0, 4.0]
+    """
+
+    stage = "compose"
+
+    def __init__(self, times_us: Sequence[int] | np.ndarray, video: str) -> None:
+        self.times_us = np.asarray(times_us, dtype=np.int64)
+        if self.times_us.ndim != 1 or (np.diff(self.times_us) < 0).any():
+            raise SimError("frame times must be a sorted 1-D sequence")
+        self.video = video
+        self._parts: list[np.ndarray] = []
+        self._done = 0
+
+    def frame(self, t_us: int, frames: Frames, prev: tuple[int, Frames] | None) -> None:
+        """Interpolate the instants up to ``t_us``."""
+        hi = int(np.searchsorted(self.times_us, t_us, side="right"))
+        current = np.asarray(frames[self.video], dtype=np.float64)
+        t0, f0 = _interval(t_us, frames, prev, self.video)
+        for t in self.times_us[self._done : hi].tolist():
+            w = 1.0 if t_us == t0 else (t - t0) / (t_us - t0)
+            self._parts.append(((1.0 - w) * f0 + w * current).astype(np.float32))
+        self._done = hi
+
+    def end(self, last: tuple[int, Frames] | None) -> None:
+        """Hold the last frame for the instants after it."""
+        if last is None:
+            return
+        held = np.asarray(last[1][self.video], dtype=np.float32)
+        self._parts.extend(held.copy() for _ in range(self.times_us.size - self._done))
+        self._done = self.times_us.size
+
+    @property
+    def images(self) -> np.ndarray:
+        """float32 ``(T, H, W)``: the video at each instant recorded so far."""
+        return np.stack(self._parts) if self._parts else np.zeros((0, 0, 0), np.float32)
 
 
 @dataclass(frozen=True)
