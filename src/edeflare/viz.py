@@ -7,7 +7,7 @@ its inputs. Files are written atomically.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -219,13 +219,14 @@ def _pad_to(image: np.ndarray, multiple: int) -> np.ndarray:
 
 
 def save_animation(
-    path: str | os.PathLike[str], frames: Sequence[np.ndarray], fps: float = 10.0
+    path: str | os.PathLike[str], frames: Iterable[np.ndarray], fps: float = 10.0
 ) -> None:
     """Write frames as an animated ``.gif`` (looping) or an H.264 ``.mp4``, atomically.
 
     MP4 frames are padded with white to multiples of 16 pixels (the codec's
     macro block); the encoder is the ``ffmpeg`` binary shipped with
-    ``imageio-ffmpeg``.
+    ``imageio-ffmpeg``. ``frames`` may be a generator: an MP4 is encoded as
+    they come (one frame in memory), a GIF collects them first.
 
     Examples
     --------
@@ -237,12 +238,16 @@ def save_animation(
     import imageio.v2 as imageio
 
     path = Path(path)
-    if not frames:
-        raise EdeflareError(f"{path}: no frames to write")
     suffix = path.suffix.lower()
+    if suffix not in (".gif", ".mp4"):
+        raise EdeflareError(f"{path}: animations are .gif or .mp4, got {suffix!r}")
+    frames = iter(frames)
+    first = next(frames, None)
+    if first is None:
+        raise EdeflareError(f"{path}: no frames to write")
     with atomic_path(path) as tmp:
         if suffix == ".gif":
-            pil = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in frames]
+            pil = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in (first, *frames)]
             pil[0].save(
                 tmp,
                 format="GIF",
@@ -251,7 +256,7 @@ def save_animation(
                 duration=max(20, round(1000 / fps)),
                 loop=0,
             )
-        elif suffix == ".mp4":
+        else:
             writer = imageio.get_writer(
                 tmp,
                 format="FFMPEG",
@@ -263,9 +268,8 @@ def save_animation(
                 pixelformat="yuv420p",
             )
             try:
+                writer.append_data(_pad_to(np.asarray(first, dtype=np.uint8), 16))
                 for f in frames:
                     writer.append_data(_pad_to(np.asarray(f, dtype=np.uint8), 16))
             finally:
                 writer.close()
-        else:
-            raise EdeflareError(f"{path}: animations are .gif or .mp4, got {suffix!r}")

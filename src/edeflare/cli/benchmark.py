@@ -44,6 +44,15 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="write an HTML report (index.html, figures, GIFs, reconstructions) into DIR",
     )
     p.add_argument("--samples", type=int, default=4, help="sample windows in the HTML report")
+    p.add_argument(
+        "--downstream",
+        nargs="?",
+        const=True,
+        default=False,
+        metavar="WEIGHTS",
+        help="also reconstruct every stream into images (the bundled reconstructor, or these "
+        "weights) and score PSNR / SSIM against the files' clean frames (eflare-r-sim files)",
+    )
     p.set_defaults(func=run)
 
 
@@ -88,9 +97,23 @@ def run(args: argparse.Namespace) -> int:
 
         check_report_dir(args.html)
         collector = FigureCollector(args.samples)
-    result = benchmark(args.split, rows, params=params, seed=args.seed, on_output=collector)
+    result = benchmark(
+        args.split,
+        rows,
+        params=params,
+        seed=args.seed,
+        on_output=collector,
+        downstream=args.downstream,
+    )
     table = result.table()
     markdown = table.to_markdown() + "\n" + result.speed_markdown()
+    if args.downstream is not False:
+        if not result.downstream or all(d["windows"] == 0 for d in result.downstream.values()):
+            raise EdeflareError(
+                f"{args.split}: no sequence holds clean frames to score reconstructions against "
+                "(simulate it with a recipe that writes them, e.g. eflare-r-sim)"
+            )
+        markdown += "\nReconstruction (downstream):\n\n" + result.downstream_markdown()
     print(markdown, end="")
     if args.report is not None:
         report = args.report.with_suffix(".md")

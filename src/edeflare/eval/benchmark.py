@@ -29,14 +29,20 @@ import numpy as np
 from tqdm import tqdm
 
 from ..deflare import Method, StreamRun, create_method
+from ..errors import ParameterError
 from ..events import SensorSize, empty_events, iter_chunk_windows
 from ..io import open_events
-from ..io.sequence import list_sequences, sequence_span
+from ..io.sequence import list_sequences, read_frames, sequence_span
+from ..recon.clips import BURN_IN
+from .downstream import DownstreamScores
 from .evaluate import Evaluation, Summary, combine_summaries, summarize
 from .metrics import SegmentMetrics, segment_metrics
 from .tables import ResultsTable
 
-__all__ = ["BenchmarkResult", "MethodSpeed", "benchmark"]
+__all__ = ["GROUND_TRUTH", "BenchmarkResult", "MethodSpeed", "benchmark"]
+
+GROUND_TRUTH = "ground truth"
+"""The downstream row of the ground truth's own events (the reconstruction ceiling)."""
 
 
 @dataclass(frozen=True)
@@ -60,10 +66,26 @@ class MethodSpeed:
 
 @dataclass(frozen=True)
 class BenchmarkResult:
-    """Metrics (``evaluation``) and speed (``speed``) of every method."""
+    """Metrics (``evaluation``), speed (``speed``) and reconstruction scores (``downstream``).
+
+    ``downstream`` maps each row, and ``"ground truth"`` (the reconstruction
+    of the ground-truth events), to ``{"psnr", "ssim", "windows"}``; it is
+    empty unless the benchmark ran with ``downstream`` on a split whose files
+    hold clean frames (:mod:`edeflare.eval.downstream`).
+    """
 
     evaluation: Evaluation
     speed: dict[str, MethodSpeed] = field(default_factory=dict)
+    downstream: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def downstream_markdown(self) -> str:
+        """Reconstruction table in Markdown (empty string without downstream scores)."""
+        if not self.downstream:
+            return ""
+        lines = ["| Stream | PSNR (dB)↑ | SSIM↑ | windows |", "|---|---|---|---|"]
+        for name, d in self.downstream.items():
+            lines.append(f"| {name} | {d['psnr']:.2f} | {d['ssim']:.4f} | {d['windows']} |")
+        return "\n".join(lines) + "\n"
 
     def table(self) -> ResultsTable:
         """The paper's table (raw input unranked, best/second marked, improvement row)."""
@@ -90,6 +112,7 @@ class BenchmarkResult:
                 }
                 for n, s in self.speed.items()
             },
+            "downstream": self.downstream,
         }
 
 
@@ -103,6 +126,7 @@ def benchmark(
     seed: int = 0,
     progress: bool = True,
     on_output: Callable[..., None] | None = None,
+    downstream: bool | str | os.PathLike[str] = False,
 ) -> BenchmarkResult:
     """Run and score every method on every sequence of a split.
 
@@ -125,6 +149,11 @@ def benchmark(
         rows of a sequence before the next sequence. The hook receives whole
         streams, so with a hook one sequence's input, ground truth and output
         are held in memory at a time; without one, only a window is.
+    downstream : bool or path-like
+        Also reconstruct every stream into images and score them against the
+        files' clean frames (:mod:`edeflare.eval.downstream`): ``True`` with
+        the bundled reconstructor, or a reconstructor weights file. Files
+        without frames are left out of these scores.
 
     Examples
     --------
@@ -148,6 +177,18 @@ def benchmark(
         row: m if isinstance(m, Method) else create_method(m, **dict((params or {}).get(row, {})))
         for row, m in methods.items()
     }
+    recon = None
+    scores: dict[str, DownstreamScores] = {}
+    if downstream is not False:
+        from ..recon.infer import Reconstructor
+
+        recon = Reconstructor(None if downstream is True else downstream)
+        if recon.window_us != window_us:
+            raise ParameterError(
+                f"the reconstructor works on {recon.window_us} µs windows, "
+                f"the benchmark on {window_us}"
+            )
+        scores = {row: DownstreamScores() for row in (*built, GROUND_TRUTH)}
     per_file: dict[str, dict[str, Summary]] = {row: {} for row in built}
     seconds = dict.fromkeys(built, 0.0)
     windows = stream_us = 0
@@ -164,6 +205,9 @@ def benchmark(
         size, start, end = span
         windows += -(-(end - start) // window_us)
         stream_us += end - start
+        frames = read_frames(path) if recon is not None else None
+        if recon is not None and frames is not None:
+            _reconstruct_gt(recon, path, size, start, end, window_us, frames, scores[GROUND_TRUTH])
         for row, method in built.items():
             bar.set_description(f"{row}: {path.stem}")
             run_seconds, segments, streams = _run_sequence(
@@ -176,6 +220,7 @@ def benchmark(
                 bins=bins,
                 rng=seed * 1_000_003 + k,
                 keep_streams=on_output is not None,
+                recon=(recon, frames, scores[row]) if frames is not None else None,
             )
             seconds[row] += run_seconds
             if on_output is not None:
@@ -198,7 +243,7 @@ def benchmark(
         per_file, {row: combine_summaries(f.values()) for row, f in per_file.items()}
     )
     speed = {row: MethodSpeed(seconds[row], windows, stream_us) for row in built}
-    return BenchmarkResult(evaluation, speed)
+    return BenchmarkResult(evaluation, speed, {row: d.means() for row, d in scores.items()})
 
 
 def _run_sequence(
@@ -212,12 +257,15 @@ def _run_sequence(
     bins: int,
     rng: int,
     keep_streams: bool,
+    recon: tuple[Any, tuple[np.ndarray, np.ndarray], DownstreamScores] | None = None,
 ) -> tuple[float, list[SegmentMetrics], tuple[np.ndarray, ...]]:
     """Stream one sequence through one method, scoring each segment once complete.
 
     Returns the method's seconds (prepass, ``process`` and ``flush`` calls),
     the segments' metrics, and the whole input, ground truth and output when
-    ``keep_streams`` (else an empty tuple).
+    ``keep_streams`` (else an empty tuple). With ``recon`` (the
+    reconstructor, the file's frames, the row's scores), each output window
+    is also reconstructed and scored (untimed).
     """
     src_in = open_events(path, group="input")
     src_gt = open_events(path, group="gt")
@@ -238,15 +286,55 @@ def _run_sequence(
         run.outputs(inputs(), window_us), window_us, start_us=start, end_us=end
     )
     segments = []
+    score = _window_scorer(recon, size, window_us)
     pairs = zip(src_gt.windows(window_us, start_us=start, end_us=end), outputs, strict=True)
-    for (w_start, gt), (_, pred) in pairs:
+    for k, ((w_start, gt), (_, pred)) in enumerate(pairs):
         if keep_streams:
             kept["gt"].append(gt)
             kept["output"].append(pred)
         segments.append(segment_metrics(gt, pred, size, w_start, window_us, bins=bins))
+        score(k, w_start, pred)
     streams = (
         tuple(np.concatenate(kept[k]) if kept[k] else empty_events() for k in kept)
         if keep_streams
         else ()
     )
     return prepass_seconds + sum(run.call_seconds), segments, streams
+
+
+def _window_scorer(
+    recon: tuple[Any, tuple[np.ndarray, np.ndarray], DownstreamScores] | None,
+    size: SensorSize,
+    window_us: int,
+) -> Callable[[int, int, np.ndarray], None]:
+    """A function of ``(window index, start, events)`` that reconstructs and scores a stream."""
+    if recon is None:
+        return lambda k, start, events: None
+    reconstructor, (times, images), scores = recon
+    reconstructor.reset()
+    at = {int(t): i for i, t in enumerate(times.tolist())}
+
+    def score(k: int, start: int, events: np.ndarray) -> None:
+        image = reconstructor.step(events, size, start)
+        i = at.get(start + window_us)
+        if k >= BURN_IN and i is not None:
+            scores.add(image, images[i])
+
+    return score
+
+
+def _reconstruct_gt(
+    recon: Any,
+    path: Path,
+    size: SensorSize,
+    start: int,
+    end: int,
+    window_us: int,
+    frames: tuple[np.ndarray, np.ndarray],
+    scores: DownstreamScores,
+) -> None:
+    """Reconstruct a sequence's ground-truth events and score them (the downstream ceiling)."""
+    score = _window_scorer((recon, frames, scores), size, window_us)
+    src = open_events(path, group="gt")
+    for k, (w_start, events) in enumerate(src.windows(window_us, start_us=start, end_us=end)):
+        score(k, w_start, events)

@@ -1,0 +1,76 @@
+"""Downstream check: does de-flaring help image reconstruction?
+
+The paper reconstructs video from events (E2VID) before and after
+de-flaring. Here each stream (the input, every method's output, the ground
+truth's events) is reconstructed by the bundled recurrent network
+(:class:`edeflare.recon.infer.Reconstructor`) window by window, and each
+image at a window's end is scored against the simulator's flare-free image
+of that instant (:func:`edeflare.io.sequence.read_frames`, mapped like the
+network's training targets: log intensity by
+:func:`edeflare.recon.clips.intensity_to_image`). Events never tell the
+absolute brightness, so both images are first shifted to mean 0.5
+(:func:`edeflare.recon.clips.centre_image`), then:
+
+- **PSNR** ``10 log10(1 / MSE)`` of the images in ``[0, 1]``;
+- **SSIM** (:func:`skimage.metrics.structural_similarity`, ``data_range=1``).
+
+The first :data:`~edeflare.recon.clips.BURN_IN` windows of each sequence are
+not scored: the network has seen too few events to know the scene. Means are
+over the scored windows of all sequences.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..recon.clips import centre_image, intensity_to_image
+
+__all__ = ["DownstreamScores", "image_scores"]
+
+
+def image_scores(image: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
+    """``(PSNR dB, SSIM)`` of an image in ``[0, 1]`` against a reference in ``[0, 1]``.
+
+    Examples
+    --------
+    >>> ref = np.linspace(0, 1, 64 * 64).reshape(64, 64)
+    >>> psnr, ssim = image_scores(ref + 0.1, ref)
+    >>> round(psnr, 6), ssim > 0.9
+    (20.0, True)
+    """
+    from skimage.metrics import structural_similarity
+
+    image = np.asarray(image, dtype=np.float64)
+    reference = np.asarray(reference, dtype=np.float64)
+    mse = float(np.mean((image - reference) ** 2))
+    psnr = math.inf if mse == 0 else 10.0 * math.log10(1.0 / mse)
+    side = min(reference.shape)
+    win = min(7, side if side % 2 else side - 1)
+    ssim = float(structural_similarity(image, reference, data_range=1.0, win_size=win))
+    return psnr, ssim
+
+
+@dataclass
+class DownstreamScores:
+    """PSNR and SSIM per scored window of one stream kind (a method, the input, the GT)."""
+
+    psnr: list[float] = field(default_factory=list)
+    ssim: list[float] = field(default_factory=list)
+
+    def add(self, image: np.ndarray, intensity: np.ndarray) -> None:
+        """Score one reconstructed image against the clean intensity image of its instant."""
+        psnr, ssim = image_scores(centre_image(image), centre_image(intensity_to_image(intensity)))
+        self.psnr.append(psnr)
+        self.ssim.append(ssim)
+
+    def means(self) -> dict[str, float]:
+        """``{"psnr", "ssim", "windows"}`` (NaN without scored windows)."""
+        n = len(self.psnr)
+        return {
+            "psnr": float(np.mean(self.psnr)) if n else math.nan,
+            "ssim": float(np.mean(self.ssim)) if n else math.nan,
+            "windows": n,
+        }
