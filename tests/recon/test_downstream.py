@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -81,10 +82,14 @@ def test_benchmark_scores_each_stream_against_the_frames_after_the_burn_in(split
 
 
 def test_cli_benchmark_downstream_and_its_errors(split, weights, tmp_path, capsys):
+    html = tmp_path / "html"
     argv = ["benchmark", str(split), "--methods", "raw", "--downstream", str(weights)]
-    assert main(argv) == 0
+    assert main([*argv, "--html", str(html), "--report", str(tmp_path / "t.md")]) == 0
     out = capsys.readouterr().out
     assert "Reconstruction (downstream)" in out and "| raw |" in out
+    assert 'id="downstream"' in (html / "index.html").read_text()
+    saved = json.loads((tmp_path / "t.json").read_text())["benchmark"]["downstream"]
+    assert set(saved) == {"raw", "ground truth"} and saved["raw"]["windows"] == 4
     # a split without frames (a real pair, a flare dataset) cannot be scored downstream
     bare = tmp_path / "bare"
     bare.mkdir()

@@ -112,7 +112,10 @@ class BenchmarkResult:
                 }
                 for n, s in self.speed.items()
             },
-            "downstream": self.downstream,
+            "downstream": {
+                row: {k: v if math.isfinite(v) else None for k, v in d.items()}
+                for row, d in self.downstream.items()
+            },
         }
 
 

@@ -63,6 +63,7 @@ __all__ = [
     "FigureData",
     "Sample",
     "check_report_dir",
+    "downstream_table_html",
     "metrics_table_html",
     "speed_table_html",
     "write_report",
@@ -167,6 +168,33 @@ def speed_table_html(result: BenchmarkResult) -> str:
         lines.append(
             f"<tr><td>{_e(name)}</td><td>{s.windows_per_s:.2f}</td>"
             f"<td>{s.real_time_factor:.3g}</td></tr>"
+        )
+    lines += ["</tbody>", "</table>"]
+    return "\n".join(lines)
+
+
+def downstream_table_html(result: BenchmarkResult) -> str:
+    """Reconstruction scores as HTML (empty string when the benchmark has none).
+
+    Examples
+    --------
+    >>> from edeflare.eval.evaluate import Evaluation
+    >>> r = BenchmarkResult(Evaluation(), {}, {"raw": {"psnr": 20.0, "ssim": 0.5, "windows": 3}})
+    >>> "<td>raw</td><td>20.00</td><td>0.5000</td><td>3</td>" in downstream_table_html(r)
+    True
+    """
+    if not result.downstream:
+        return ""
+    lines = [
+        '<table id="downstream">',
+        "<thead><tr><th>Stream</th><th>PSNR (dB) ↑</th><th>SSIM ↑</th><th>windows</th></tr>"
+        "</thead>",
+        "<tbody>",
+    ]
+    for name, d in result.downstream.items():
+        lines.append(
+            f"<tr><td>{_e(name)}</td><td>{_fmt(d['psnr'], 2)}</td>"
+            f"<td>{_fmt(d['ssim'], 4)}</td><td>{int(d['windows'])}</td></tr>"
         )
     lines += ["</tbody>", "</table>"]
     return "\n".join(lines)
@@ -304,6 +332,16 @@ def _page(
         "over stream duration (below 1: faster than real time).</p>",
         speed_table_html(result),
     ]
+    if result.downstream:
+        body += [
+            '<h2 id="downstream-title">Downstream: image reconstruction</h2>',
+            '<p class="note">Every stream reconstructed into images by the bundled recurrent '
+            "reconstructor (<code>edeflare.recon</code>) and scored against the simulator's "
+            "flare-free image at each window's end (log intensity, both shifted to mean 0.5; "
+            "the first windows of each sequence are a burn-in). <em>ground truth</em> is the "
+            "reconstruction of the ground-truth events: the ceiling.</p>",
+            downstream_table_html(result),
+        ]
     if figures is None or not figures.samples:
         body.append('<p class="note">No figures (no sample windows were collected).</p>')
     else:
@@ -412,6 +450,7 @@ def write_report(
     contrast: float = 0.2,
     title: str = "edeflare benchmark report",
     progress: bool = True,
+    downstream: bool | str | os.PathLike[str] = False,
 ) -> Path:
     """Write the HTML report folder; return the path of its ``index.html``.
 
@@ -434,6 +473,9 @@ def write_report(
         With a split folder: the :class:`FigureCollector` settings.
     title : str
         Page title.
+    downstream : bool or path-like
+        With a split folder: also score reconstructions (see
+        :func:`edeflare.eval.benchmark.benchmark`); the page gets their table.
 
     Examples
     --------
@@ -455,7 +497,13 @@ def write_report(
         collector = FigureCollector(samples, gif_windows, cutoff_hz=cutoff_hz, contrast=contrast)
         rows = methods if methods is not None else {m: m for m in DEFAULT_METHODS}
         result = benchmark(
-            source, rows, params=params, seed=seed, progress=progress, on_output=collector
+            source,
+            rows,
+            params=params,
+            seed=seed,
+            progress=progress,
+            on_output=collector,
+            downstream=downstream,
         )
         figures = collector.finish()
     out.mkdir(parents=True, exist_ok=True)
