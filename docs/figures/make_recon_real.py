@@ -9,8 +9,9 @@ lamps), the events are de-flared by each method in memory, and each stream is
 reconstructed by the bundled reconstructor (``edeflare.recon``) over its
 aligned 20 ms windows from the recording's start. The figure shows, per
 recording (rows), the last complete window's events of the input and the
-reconstruction of each stream at that window's end (columns). Qualitative,
-as in the paper: real recordings have no flare-free image to score against.
+reconstruction of each stream at that window's end (columns), one figure
+per recording (``recon_real_<recording>.png``). Qualitative, as in the
+paper: real recordings have no flare-free image to score against.
 """
 
 from __future__ import annotations
@@ -44,7 +45,6 @@ def main() -> None:
     parser.add_argument("--data", type=Path, default=Path("../shared/data/real"))
     parser.add_argument("--out", type=Path, default=Path("docs/figures"))
     args = parser.parse_args()
-    tiles, rows = [], []
     for name in RECORDINGS:
         events, size = read_events(args.data / name)
         start = window_start_for(int(events["t"][0]), 20_000)
@@ -62,13 +62,10 @@ def main() -> None:
             _, images = reconstruct_events(stream, size, start_us=start, end_us=end)
             row.append(_gray(images[-1]))
             print(f"{name} {label}: {stream.size} events, image mean {images[-1].mean():.3f}")
-        tiles.extend(row)
-        rows.append(name.split(".")[0])
-        columns = ["input events (last 20 ms)", *(f"recon: {s}" for s in streams)]
-    picture = grid(tiles, labels=columns, ncols=len(columns), row_labels=rows)
-    out = args.out / "recon_real.png"
-    save_image(out, picture)
-    print(f"wrote {out}")
+        columns = ["input events (last 20 ms)", *(f"reconstruction: {s}" for s in streams)]
+        out = args.out / f"recon_real_{name.split('.')[0]}.png"
+        save_image(out, grid(row, labels=columns, ncols=len(columns)))
+        print(f"wrote {out}")
 
 
 if __name__ == "__main__":

@@ -65,7 +65,7 @@ class FireNet(nn.Module):
     --------
     >>> net = FireNet()
     >>> sum(p.numel() for p in net.parameters())
-    37924
+    37949
     >>> image, state = net(torch.zeros(1, 5, 24, 32), None)
     >>> tuple(image.shape), len(state)
     ((1, 1, 24, 32), 3)
