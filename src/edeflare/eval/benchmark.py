@@ -182,7 +182,7 @@ def benchmark(
     }
     recon = None
     scores: dict[str, DownstreamScores] = {}
-    if downstream is not False:
+    if downstream is not False and downstream is not None:
         from ..recon.infer import Reconstructor
 
         recon = Reconstructor(None if downstream is True else downstream)
