@@ -10,7 +10,9 @@ first use of a name imports its module.
   :func:`deflare_file`, :func:`create_method`, :func:`list_methods`;
 - evaluate: :func:`evaluate_events` (the paper's metrics over aligned segments);
 - simulate: :func:`simulate_pair` (one input / ground-truth pair of a flare script);
-- models: :func:`create_model`, :func:`list_models` (E-DeflareNet presets; needs torch).
+- models: :func:`create_model`, :func:`list_models` (E-DeflareNet presets; needs torch);
+- reconstruct: :func:`reconstruct_events` (images from events, the bundled
+  recurrent reconstructor) and :func:`reconstruct_file` (a video).
 
 Examples
 --------
@@ -60,6 +62,8 @@ _LAZY: dict[str, str] = {
     "simulate_pair": "sim.pair",
     "create_model": "models",
     "list_models": "models",
+    "reconstruct_events": "recon.infer",
+    "reconstruct_file": "recon.infer",
 }
 
 __all__ = [
@@ -89,6 +93,8 @@ __all__ = [
     "merge_events",
     "open_events",
     "read_events",
+    "reconstruct_events",
+    "reconstruct_file",
     "simulate_pair",
     "slice_time",
     "sort_events",
@@ -135,5 +141,6 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     )
     from .io import iter_windows, open_events, read_events, write_event_chunks, write_events
     from .models import create_model, list_models
+    from .recon.infer import reconstruct_events, reconstruct_file
     from .sim.pair import simulate_pair
     from .voxel import decode, encode, encode_polarity
