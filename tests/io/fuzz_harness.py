@@ -183,9 +183,7 @@ def fuzz_format(
             "--work", str(work),
             "--seed-files", *map(str, seed_files),
         ]  # fmt: skip
-        proc = subprocess.Popen(
-            cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env
-        )
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
         children += 1
         last_size, last_change = -1, time.monotonic()
         hung = False

@@ -79,6 +79,11 @@ def test_benchmark_scores_each_stream_against_the_frames_after_the_burn_in(split
     # PFD-A removes events, so its reconstruction differs from the input's
     assert result.downstream["pfd-a"] != result.downstream["raw"]
     assert "| ground truth |" in result.downstream_markdown()
+    # the first sequence's images, kept for the report's animation
+    sample = result.downstream_sample
+    assert set(sample) == {"raw", "pfd-a", GROUND_TRUTH, "clean"}
+    assert all(v.shape == (4, 48, 64) for v in sample.values())
+    assert np.allclose(sample["clean"].mean(axis=(1, 2)), 0.5, atol=0.05)
 
 
 def test_cli_benchmark_downstream_and_its_errors(split, weights, tmp_path, capsys):
@@ -87,7 +92,11 @@ def test_cli_benchmark_downstream_and_its_errors(split, weights, tmp_path, capsy
     assert main([*argv, "--html", str(html), "--report", str(tmp_path / "t.md")]) == 0
     out = capsys.readouterr().out
     assert "Reconstruction (downstream)" in out and "| raw |" in out
-    assert 'id="downstream"' in (html / "index.html").read_text()
+    page = (html / "index.html").read_text()
+    assert 'id="downstream"' in page and 'src="downstream.gif"' in page
+    import imageio.v3 as iio
+
+    assert iio.imread(html / "downstream.gif", index=None).shape[0] == 4  # windows of one seq
     saved = json.loads((tmp_path / "t.json").read_text())["benchmark"]["downstream"]
     assert set(saved) == {"raw", "ground truth"} and saved["raw"]["windows"] == 4
     # a split without frames (a real pair, a flare dataset) cannot be scored downstream

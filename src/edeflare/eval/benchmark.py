@@ -33,7 +33,7 @@ from ..errors import ParameterError
 from ..events import SensorSize, empty_events, iter_chunk_windows
 from ..io import open_events
 from ..io.sequence import list_sequences, read_frames, sequence_span
-from ..recon.clips import BURN_IN
+from ..recon.clips import BURN_IN, centre_image, intensity_to_image
 from .downstream import DownstreamScores
 from .evaluate import Evaluation, Summary, combine_summaries, summarize
 from .metrics import SegmentMetrics, segment_metrics
@@ -77,6 +77,9 @@ class BenchmarkResult:
     evaluation: Evaluation
     speed: dict[str, MethodSpeed] = field(default_factory=dict)
     downstream: dict[str, dict[str, float]] = field(default_factory=dict)
+    downstream_sample: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    """One sequence's reconstructions, ``(T, H, W)`` in [0, 1] per stream, and its
+    ``"clean"`` frames mapped alike: the report's side-by-side animation."""
 
     def downstream_markdown(self) -> str:
         """Reconstruction table in Markdown (empty string without downstream scores)."""
@@ -192,6 +195,7 @@ def benchmark(
                 f"the benchmark on {window_us}"
             )
         scores = {row: DownstreamScores() for row in (*built, GROUND_TRUTH)}
+    sample: dict[str, list[np.ndarray]] = {}
     per_file: dict[str, dict[str, Summary]] = {row: {} for row in built}
     seconds = dict.fromkeys(built, 0.0)
     windows = stream_us = 0
@@ -209,8 +213,14 @@ def benchmark(
         windows += -(-(end - start) // window_us)
         stream_us += end - start
         frames = read_frames(path) if recon is not None else None
+        keep = {} if frames is None or sample else sample  # the first sequence with frames
         if recon is not None and frames is not None:
-            _reconstruct_gt(recon, path, size, start, end, window_us, frames, scores[GROUND_TRUTH])
+            keep_gt = keep.setdefault(GROUND_TRUTH, []) if keep is sample else None
+            _reconstruct_gt(
+                recon, path, size, start, end, window_us, frames, scores[GROUND_TRUTH], keep_gt
+            )
+            if keep is sample:
+                sample["clean"] = [centre_image(intensity_to_image(f)) for f in frames[1]]
         for row, method in built.items():
             bar.set_description(f"{row}: {path.stem}")
             run_seconds, segments, streams = _run_sequence(
@@ -224,6 +234,7 @@ def benchmark(
                 rng=seed * 1_000_003 + k,
                 keep_streams=on_output is not None,
                 recon=(recon, frames, scores[row]) if frames is not None else None,
+                keep_images=sample.setdefault(row, []) if keep is sample else None,
             )
             seconds[row] += run_seconds
             if on_output is not None:
@@ -246,7 +257,10 @@ def benchmark(
         per_file, {row: combine_summaries(f.values()) for row, f in per_file.items()}
     )
     speed = {row: MethodSpeed(seconds[row], windows, stream_us) for row in built}
-    return BenchmarkResult(evaluation, speed, {row: d.means() for row, d in scores.items()})
+    downstream_sample = {k: np.stack(v) for k, v in sample.items() if v}
+    return BenchmarkResult(
+        evaluation, speed, {row: d.means() for row, d in scores.items()}, downstream_sample
+    )
 
 
 def _run_sequence(
@@ -261,6 +275,7 @@ def _run_sequence(
     rng: int,
     keep_streams: bool,
     recon: tuple[Any, tuple[np.ndarray, np.ndarray], DownstreamScores] | None = None,
+    keep_images: list[np.ndarray] | None = None,
 ) -> tuple[float, list[SegmentMetrics], tuple[np.ndarray, ...]]:
     """Stream one sequence through one method, scoring each segment once complete.
 
@@ -268,7 +283,8 @@ def _run_sequence(
     the segments' metrics, and the whole input, ground truth and output when
     ``keep_streams`` (else an empty tuple). With ``recon`` (the
     reconstructor, the file's frames, the row's scores), each output window
-    is also reconstructed and scored (untimed).
+    is also reconstructed and scored (untimed); its images go to
+    ``keep_images`` when given.
     """
     src_in = open_events(path, group="input")
     src_gt = open_events(path, group="gt")
@@ -289,7 +305,7 @@ def _run_sequence(
         run.outputs(inputs(), window_us), window_us, start_us=start, end_us=end
     )
     segments = []
-    score = _window_scorer(recon, size, window_us)
+    score = _window_scorer(recon, size, window_us, keep_images)
     pairs = zip(src_gt.windows(window_us, start_us=start, end_us=end), outputs, strict=True)
     for k, ((w_start, gt), (_, pred)) in enumerate(pairs):
         if keep_streams:
@@ -309,8 +325,10 @@ def _window_scorer(
     recon: tuple[Any, tuple[np.ndarray, np.ndarray], DownstreamScores] | None,
     size: SensorSize,
     window_us: int,
+    keep_images: list[np.ndarray] | None = None,
 ) -> Callable[[int, int, np.ndarray], None]:
-    """A function of ``(window index, start, events)`` that reconstructs and scores a stream."""
+    """A function of ``(window index, start, events)`` that reconstructs and scores a stream
+    (and appends each image to ``keep_images`` when given)."""
     if recon is None:
         return lambda k, start, events: None
     reconstructor, (times, images), scores = recon
@@ -319,6 +337,8 @@ def _window_scorer(
 
     def score(k: int, start: int, events: np.ndarray) -> None:
         image = reconstructor.step(events, size, start)
+        if keep_images is not None:
+            keep_images.append(centre_image(image))
         i = at.get(start + window_us)
         if k >= BURN_IN and i is not None:
             scores.add(image, images[i])
@@ -335,9 +355,10 @@ def _reconstruct_gt(
     window_us: int,
     frames: tuple[np.ndarray, np.ndarray],
     scores: DownstreamScores,
+    keep_images: list[np.ndarray] | None = None,
 ) -> None:
     """Reconstruct a sequence's ground-truth events and score them (the downstream ceiling)."""
-    score = _window_scorer((recon, frames, scores), size, window_us)
+    score = _window_scorer((recon, frames, scores), size, window_us, keep_images)
     src = open_events(path, group="gt")
     for k, (w_start, events) in enumerate(src.windows(window_us, start_us=start, end_us=end)):
         score(k, w_start, events)

@@ -272,6 +272,25 @@ def _write_figures(out: Path, figures: FigureData) -> dict[str, Any]:
     return names
 
 
+def _write_downstream_animation(out: Path, result: BenchmarkResult) -> str | None:
+    """``downstream.gif``: one sequence's reconstructions side by side, window by window."""
+    sample = result.downstream_sample
+    if not sample:
+        return None
+    columns = [c for c in sample if c not in ("clean", "ground truth")]
+    columns += [c for c in ("ground truth", "clean") if c in sample]
+    label_of = {"ground truth": "ground-truth events", "clean": "clean frame"}
+    labels = [label_of.get(c, c) for c in columns]
+    n = min(len(sample[c]) for c in columns)
+    frames = []
+    for t in range(n):
+        gray = [np.round(np.clip(sample[c][t], 0, 1) * 255).astype(np.uint8) for c in columns]
+        cells = [_gray(g) for g in gray]
+        frames.append(_fit(grid(cells, labels=labels, ncols=len(columns)), _GIF_MAX_WIDTH))
+    save_animation(out / "downstream.gif", frames, fps=2.0)
+    return "downstream.gif"
+
+
 def _nan_none(value: float) -> float | None:
     return None if math.isnan(value) else float(value)
 
@@ -342,6 +361,13 @@ def _page(
             "reconstruction of the ground-truth events: the ceiling.</p>",
             downstream_table_html(result),
         ]
+        if names.get("downstream"):
+            body.append(
+                '<figure><img src="downstream.gif" alt="reconstructions side by side">'
+                "<figcaption>One sequence, window by window: the reconstruction of each "
+                "stream, of the ground-truth events, and the clean frame it is scored "
+                "against (all with their mean shifted to mid-gray).</figcaption></figure>"
+            )
     if figures is None or not figures.samples:
         body.append('<p class="note">No figures (no sample windows were collected).</p>')
     else:
@@ -508,6 +534,7 @@ def write_report(
         figures = collector.finish()
     out.mkdir(parents=True, exist_ok=True)
     names = _write_figures(out, figures) if figures is not None else {"gifs": []}
+    names["downstream"] = _write_downstream_animation(out, result)
     with atomic_path(out / "results.json") as tmp:
         tmp.write_text(_results_json(result, figures), encoding="utf-8")
     page = out / "index.html"
