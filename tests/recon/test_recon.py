@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
 
+from edeflare.errors import EdeflareError
 from edeflare.events import make_events
 from edeflare.models.weights import WeightsError
 from edeflare.recon import train as recon_train
@@ -141,3 +144,7 @@ def test_training_resumes_exactly(tmp_path, monkeypatch):
         assert torch.equal(x, y), name
     log = (tmp_path / "b" / "train_log.csv").read_text().splitlines()
     assert [row.split(",")[0] for row in log] == ["iteration", "1", "2", "3", "4"]
+    # only the iteration count may change on resume
+    other = dataclasses.replace(config, lr=config.lr / 2)
+    with pytest.raises(EdeflareError, match=r"\['lr'\]"):
+        recon_train.train_reconstructor(tmp_path / "b", other, progress=False)

@@ -109,8 +109,9 @@ def train_reconstructor(
     if ckpt.exists():
         state = torch.load(ckpt, weights_only=True)
         saved = json.loads(state["config"])
+        now = asdict(config)
         changed = sorted(
-            k for k, v in saved.items() if k != "iterations" and v != asdict(config)[k]
+            k for k in saved.keys() | now.keys() if k != "iterations" and saved.get(k) != now.get(k)
         )
         if changed:
             raise EdeflareError(f"{ckpt}: written with other values of {changed}; use a new folder")
