@@ -30,7 +30,10 @@ from .clips import BURN_IN, draw_clip
 from .network import FireNet
 from .weights import ReconCard, save_reconstructor
 
-__all__ = ["ReconTrainConfig", "train_reconstructor"]
+__all__ = ["ReconTrainConfig", "held_out_error", "train_reconstructor"]
+
+HELD_OUT = ((10_001, False), (10_002, True), (10_003, False))
+"""Seeds and day/night of the held-out clips (far from the pool's seed sequences)."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +95,29 @@ def clip_loss(
         total = total + loss
         steps += 1
     return total / max(steps, 1)
+
+
+def held_out_error(model: FireNet, size: tuple[int, int] = (160, 120)) -> dict[str, float]:
+    """Mean absolute error on held-out clips (:data:`HELD_OUT`, 8 windows, burn-in excluded).
+
+    Returns ``{"held_out_l1", "flat_gray_l1", "ratio"}``: the network's error,
+    that of a flat gray image (0.5, the centred images' mean), and their ratio
+    (below 1: better than knowing nothing).
+    """
+    errors, flat = [], []
+    model.eval()
+    for seed, day in HELD_OUT:
+        clip = draw_clip(size, 8, day=day, rng=seed)
+        state = None
+        with torch.no_grad():
+            for t in range(clip.voxels.shape[0]):
+                image, state = model(torch.from_numpy(clip.voxels[t : t + 1]), state)
+                if t >= BURN_IN:
+                    target = clip.images[t, 0]
+                    errors.append(float(np.abs(image[0, 0].numpy() - target).mean()))
+                    flat.append(float(np.abs(0.5 - target).mean()))
+    l1, gray = float(np.mean(errors)), float(np.mean(flat))
+    return {"held_out_l1": l1, "flat_gray_l1": gray, "ratio": l1 / gray}
 
 
 def train_reconstructor(
