@@ -213,13 +213,13 @@ def benchmark(
         windows += -(-(end - start) // window_us)
         stream_us += end - start
         frames = read_frames(path) if recon is not None else None
-        keep = {} if frames is None or sample else sample  # the first sequence with frames
-        if recon is not None and frames is not None:
-            keep_gt = keep.setdefault(GROUND_TRUTH, []) if keep is sample else None
+        in_sample = frames is not None and not sample  # the first sequence with frames
+        if frames is not None:  # read only with a reconstructor
+            keep_gt = sample.setdefault(GROUND_TRUTH, []) if in_sample else None
             _reconstruct_gt(
                 recon, path, size, start, end, window_us, frames, scores[GROUND_TRUTH], keep_gt
             )
-            if keep is sample:
+            if in_sample:
                 sample["clean"] = [centre_image(intensity_to_image(f)) for f in frames[1]]
         for row, method in built.items():
             bar.set_description(f"{row}: {path.stem}")
@@ -234,7 +234,7 @@ def benchmark(
                 rng=seed * 1_000_003 + k,
                 keep_streams=on_output is not None,
                 recon=(recon, frames, scores[row]) if frames is not None else None,
-                keep_images=sample.setdefault(row, []) if keep is sample else None,
+                keep_images=sample.setdefault(row, []) if in_sample else None,
             )
             seconds[row] += run_seconds
             if on_output is not None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import asdict, dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +13,7 @@ from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
 from ..io._atomic import atomic_path
+from ..models.infer import bundled_weights
 from ..models.weights import WeightsError, _check_file
 from .network import FireNet
 
@@ -55,8 +55,8 @@ class ReconCard:
 
 
 def bundled_path() -> Path:
-    """Path of the bundled reconstructor's weights."""
-    return Path(str(resources.files("edeflare") / "assets" / f"{BUNDLED}.safetensors"))
+    """Path of the bundled reconstructor's weights (a clear error where it is missing)."""
+    return bundled_weights(BUNDLED)
 
 
 def save_reconstructor(path: str | os.PathLike[str], model: FireNet, card: ReconCard) -> None:
