@@ -107,7 +107,7 @@ def bg_weight(comp: Components) -> np.ndarray:
 
 
 def compare(k: int) -> list[dict[str, object]]:
-    recipe = dataclasses.replace(RECIPES["eflare-mini"], variant="forward")
+    recipe = RECIPES["eflare-mini"].replace(variant="forward")
     size, d = recipe.sensor_size, recipe.duration_us
     scores: dict[tuple[str, str], list[dict[str, float]]] = {}
     weight_err: dict[str, list[float]] = {}

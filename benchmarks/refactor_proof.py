@@ -79,7 +79,9 @@ def _generate(recipe, out: Path) -> dict[str, str]:
 
 
 def _replace(recipe, **changes):
-    """``dataclasses.replace`` across the flat (old) and per-kind (new) recipe layouts."""
+    """A changed recipe across the flat (old) and per-kind (new, ``Recipe.replace``) layouts."""
+    if hasattr(recipe, "replace"):
+        return recipe.replace(**changes)
     return dataclasses.replace(recipe, **changes)
 
 

@@ -36,7 +36,7 @@ def test_configurations_train_equal_budgets_on_every_variant():
     for cfg in ABLATIONS.values():
         assert cfg.variants == tuple(VARIANT_ROWS)
         recipes = [cfg.recipe_for(v) for v in cfg.variants]
-        assert [r.variant for r in recipes] == list(VARIANT_ROWS)
+        assert [r.config.variant for r in recipes] == list(VARIANT_ROWS)
         # everything but the composition (and the name) is shared
         for r in recipes:
             assert (r.seed, r.sequences, r.sensor_size, r.duration_us) == (

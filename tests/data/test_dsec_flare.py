@@ -86,7 +86,7 @@ def dsec_root(tmp_path_factory) -> tuple[Path, dict[str, dict[str, np.ndarray]]]
 
 def recipe(root: Path, **changes) -> Recipe:
     dsec = DsecFlareConfig(root=str(root), **changes)
-    return dataclasses.replace(RECIPES["dsec-flare"], dsec=dsec)
+    return RECIPES["dsec-flare"].replace(dsec=dsec)
 
 
 @pytest.fixture(scope="module")
@@ -108,11 +108,11 @@ def _source_window(ev: dict[str, np.ndarray], start_us: int, duration_us: int) -
 def test_recipe_holds_the_papers_sequences_and_windows():
     r = RECIPES["dsec-flare"]
     assert r.kind == "dsec" and r.sensor_size == (640, 480) and r.duration_us == 100_000
-    assert set(r.dsec.sequences) == set(DSEC_FLARE_SEQUENCES)
+    assert set(r.config.sequences) == set(DSEC_FLARE_SEQUENCES)
     assert r.sequences == r.test_sequences == 15
     centres = {w.sequence: w.center_s for w in DEFAULT_WINDOWS}
     assert centres["zurich_city_03_a"] == 7.6 and centres["zurich_city_09_c"] == 26.0
-    r2 = dataclasses.replace(r, dsec=DsecFlareConfig(windows=(WindowSpec("x", 1.0, 4),)))
+    r2 = r.replace(dsec=DsecFlareConfig(windows=(WindowSpec("x", 1.0, 4),)))
     assert r2.sequences == r2.test_sequences == 4
     assert parse_window("zurich_city_09_d:3.25:2") == WindowSpec("zurich_city_09_d", 3.25, 2)
     for bad in ("", "a:b", "a:1:x", "a:1:2:3", "a:-1"):

@@ -52,7 +52,7 @@ TINY = dataclasses.replace(
     sequences=3,
     sensor_size=(64, 48),
     duration_us=20_000,
-    optics=OpticsSceneConfig(psf_grid=128),
+    config=OpticsSceneConfig(psf_grid=128),
 )
 
 
@@ -91,7 +91,7 @@ def test_recipes_are_test_sets_of_documented_sizes():
 
 
 def test_recipe_round_trips_and_flare_recipes_keep_their_digest():
-    r = dataclasses.replace(TINY, optics=OpticsSceneConfig(psf_grid=64, sources=(2, 2)))
+    r = TINY.replace(optics=OpticsSceneConfig(psf_grid=64, sources=(2, 2)))
     again = type(r).from_dict(json.loads(json.dumps(r.to_dict())))
     assert again == r and again.sha256() == r.sha256()
     assert "optics" in r.identity() and "dsec" not in r.identity()

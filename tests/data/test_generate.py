@@ -21,6 +21,7 @@ from edeflare.cli import main
 from edeflare.data.generate import (
     GROUPS,
     RECIPES,
+    FlareConfig,
     Recipe,
     draw_inputs,
     generate_dataset,
@@ -45,8 +46,8 @@ TINY = Recipe(
     test_sequences=2,
     duration_us=40_000,
     sensor_size=(64, 48),
-    script=ScriptConfig(psf_grid=128),
     scene=SceneConfig(fps=1000.0),
+    config=FlareConfig(script=ScriptConfig(psf_grid=128)),
 )
 
 
@@ -76,7 +77,7 @@ def test_paper_recipe_has_the_papers_numbers():
     assert r.sensor_size == (640, 480) and r.duration_us == 100_000 and r.window_us == 20_000
     assert r.windows_per_sequence * r.sequences == 2720
     assert (n_train * r.windows_per_sequence, n_test * r.windows_per_sequence) == (2545, 175)
-    assert r.variant == "physical"
+    assert r.config.variant == "physical"
     assert {"eflare-2.7k", "eflare-mini"} <= set(list_recipes())
 
 
@@ -120,8 +121,8 @@ def test_sequence_is_a_pure_function_of_recipe_and_index():
 
 def test_variants_build_the_pairs_they_promise():
     physical = generate_sequence(TINY, 2)
-    simple = generate_sequence(dataclasses.replace(TINY, variant="simple"), 2)
-    no_light = generate_sequence(dataclasses.replace(TINY, variant="no-light"), 2)
+    simple = generate_sequence(TINY.replace(variant="simple"), 2)
+    no_light = generate_sequence(TINY.replace(variant="no-light"), 2)
     s = simple.streams
     # Same script, background and flare: only the composition differs.
     for k in ("flare", "light", "background"):
@@ -137,13 +138,13 @@ def test_variants_build_the_pairs_they_promise():
 
 
 def test_forward_variant_and_counts_weights_run():
-    fwd = generate_sequence(dataclasses.replace(TINY, variant="forward"), 0)
+    fwd = generate_sequence(TINY.replace(variant="forward"), 0)
     phys = generate_sequence(TINY, 0)
     assert same_events(fwd.streams["flare"], phys.streams["flare"])
     assert fwd.streams["input"].size > 0 and not same_events(
         fwd.streams["input"], phys.streams["input"]
     )
-    counts = generate_sequence(dataclasses.replace(TINY, weights="counts"), 0)
+    counts = generate_sequence(TINY.replace(weights="counts"), 0)
     assert same_events(counts.streams["flare"], phys.streams["flare"])
     assert counts.streams["input"].size > 0
 

@@ -28,7 +28,7 @@ SMALL = dataclasses.replace(
     sequences=2,
     sensor_size=(64, 48),
     duration_us=80_000,
-    optics=OpticsSceneConfig(psf_grid=128),
+    config=OpticsSceneConfig(psf_grid=128),
 )
 
 

@@ -25,9 +25,8 @@ RECIPE = Recipe(
 
 @pytest.mark.parametrize("variant", ["physical", "forward"])
 def test_simulate_pair_is_the_generators_flare_sequence(variant):
-    import dataclasses
 
-    recipe = dataclasses.replace(RECIPE, variant=variant)
+    recipe = RECIPE.replace(variant=variant)
     inputs = draw_inputs(recipe, 1)
     pair = simulate_pair(
         inputs.script,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from edeflare.data.generate import generate_sequence, write_sequence
-from edeflare.data.recipe import RECIPES, Recipe
+from edeflare.data.recipe import RECIPES, FlareConfig, Recipe
 from edeflare.errors import ParameterError
 from edeflare.events import EVENT_DTYPE, make_events
 from edeflare.io.dsec import read_dsec
@@ -115,7 +115,7 @@ def test_same_seed_same_output_and_bad_configs_are_refused(rng):
 def test_a_sensing_recipe_writes_a_keep_only_target_and_the_full_one(tmp_path):
     recipe = Recipe(name="tiny-night", sequences=1, test_sequences=0, sensor_size=(64, 48),
                     duration_us=20_000, scene=SceneConfig(fps=1000.0),
-                    sensing=SensingConfig(enabled=True))  # fmt: skip
+                    config=FlareConfig(sensing=SensingConfig(enabled=True)))  # fmt: skip
     assert Recipe.from_dict(recipe.to_dict()) == recipe
     data = generate_sequence(recipe, 0)
     inp, gt = data.streams["input"], data.streams["gt"]
@@ -123,6 +123,6 @@ def test_a_sensing_recipe_writes_a_keep_only_target_and_the_full_one(tmp_path):
     write_sequence(tmp_path / "s.h5", data, recipe)
     np.testing.assert_array_equal(read_dsec(tmp_path / "s.h5", "gt_full")[0],
                                   data.streams["gt_full"])  # fmt: skip
-    assert RECIPES["eflare-night"].sensing.enabled
+    assert RECIPES["eflare-night"].config.sensing.enabled
     assert "sensing" not in RECIPES["eflare-mini"].to_dict()  # old digests unchanged
     assert EVENT_DTYPE == inp.dtype

@@ -34,8 +34,9 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument(
         "--recipe",
         default="eflare-mini",
-        help="eflare-2.7k (the paper's: 544 x 100 ms at 640x480), eflare-mini (120 at 346x260); "
-        "test sets: eflare-r-sim (30 at 640x480), eflare-r-sim-mini (20 at 346x260), "
+        help="eflare-2.7k (the paper's: 544 x 100 ms at 640x480), eflare-mini (120 at 346x260), "
+        "eflare-night (180 at 346x260, calibrated on real night recordings); test sets: "
+        "eflare-r-sim (30 at 640x480), eflare-r-sim-mini (20 at 346x260), "
         "dsec-flare (15 DSEC windows of 100 ms at 640x480, needs --dsec-root)",
     )
     p.add_argument("--sequences", type=int, help="number of sequences")
@@ -105,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
         "--test-sequences": args.test_sequences is not None,
         "--sequences": args.sequences is not None,
         "--variant": args.variant is not None,
+        "--weights": args.weights is not None,
         "--flare7k": args.flare7k is not None,
         "--no-components": args.no_components,
         "--background": bool(args.background),
@@ -132,13 +134,13 @@ def run(args: argparse.Namespace) -> int:
     if args.no_components:
         changes["components"] = False
     if "--dsec-root" in kind.cli_options:  # the DSEC windows' config
-        dsec = base.dsec
+        dsec = base.config
         if args.dsec_root is not None:
             dsec = dataclasses.replace(dsec, root=str(args.dsec_root))
         if args.dsec_window:
             dsec = dataclasses.replace(dsec, windows=tuple(map(parse_window, args.dsec_window)))
-        changes["dsec"] = dataclasses.replace(dsec, rectify=args.rectify)
-    recipe = dataclasses.replace(base, **changes)
+        changes["config"] = dataclasses.replace(dsec, rectify=args.rectify)
+    recipe = base.replace(**changes)
     report = generate_dataset(
         recipe, args.out, workers=args.workers, shard=args.shard, progress=not args.no_progress
     )

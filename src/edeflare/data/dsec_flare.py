@@ -441,7 +441,7 @@ def dsec_sequence(
     if cfg.root is None:
         raise DsecFlareError(
             f"recipe {name!r} needs the local DSEC folder: --dsec-root PATH "
-            "(or dsec=DsecFlareConfig(root=...))"
+            "(or recipe.replace(dsec=DsecFlareConfig(root=...)))"
         )
     spec, k = expand_windows(cfg.windows)[index]
     path = find_dsec_sequences(cfg.root, [spec.sequence])[spec.sequence]
@@ -468,12 +468,12 @@ def dsec_sequence(
 
 def _check(recipe: Recipe) -> None:
     """Find the recipe's DSEC files before a run (errors surface early)."""
-    if recipe.dsec.root is None:
+    if recipe.config.root is None:
         raise DsecFlareError(
             f"recipe {recipe.name!r} needs the local DSEC folder: --dsec-root PATH "
-            "(or dsec=DsecFlareConfig(root=...))"
+            "(or recipe.replace(dsec=DsecFlareConfig(root=...)))"
         )
-    find_dsec_sequences(recipe.dsec.root, recipe.dsec.sequences)
+    find_dsec_sequences(recipe.config.root, recipe.config.sequences)
 
 
 def _identity(config: dict[str, Any]) -> dict[str, Any]:
@@ -486,7 +486,6 @@ def _identity(config: dict[str, Any]) -> dict[str, Any]:
     config_field="dsec",
     config_type=DsecFlareConfig,
     test_only=True,
-    uses_background=False,
     count=lambda config: len(expand_windows(config.windows)),
     check=_check,
     identity=_identity,
@@ -495,7 +494,7 @@ def _identity(config: dict[str, Any]) -> dict[str, Any]:
 def _make_sequence(recipe: Recipe, index: int, source: Any = None) -> KindSequence:
     """The ``"dsec"`` kind: :func:`dsec_sequence` of the recipe's ``dsec`` config."""
     streams, window, background, seconds = dsec_sequence(
-        recipe.dsec,
+        recipe.config,
         index,
         duration_us=recipe.duration_us,
         sensor_size=recipe.sensor_size,

@@ -12,23 +12,161 @@ variant and weights).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import EdeflareError, ParameterError
 from ..sim.background import Background, BackgroundSource
-from ..sim.pair import StageTimer, simulate_pair
+from ..sim.pair import PAIR_VARIANTS, WEIGHTS, StageTimer, simulate_pair
 from ..sim.render import flare7k_names
-from ..sim.script import FlareScript, draw_script
+from ..sim.script import FlareScript, ScriptConfig, draw_script
+from ..sim.sensing import SensingConfig, sparse_sensing
 from .kinds import STAGES, GenerationError, KindSequence, register_kind
 from .sources import cached_source, check_index
 
 if TYPE_CHECKING:  # pragma: no cover
     from .recipe import Recipe
 
-__all__ = ["SequenceInputs", "draw_inputs", "flare_sequence"]
+__all__ = ["FlareConfig", "SequenceInputs", "draw_inputs", "flare_sequence"]
+
+SENSING_STREAM = 7
+"""The sparse-sensing stage draws from ``SeedSequence((seed, i, 7))``."""
+
+
+@dataclass(frozen=True)
+class FlareConfig:
+    """The ``"flare"`` kind's own settings (``recipe.config``): how a training pair is made.
+
+    Parameters
+    ----------
+    variant : str
+        ``"physical"`` (PNL-ES), ``"simple"``, ``"simple+random"``,
+        ``"physical+random"``, ``"no-light"`` or ``"forward"`` (full forward
+        model; synthetic backgrounds only).
+    weights : {"intensity", "accumulation", "counts"}
+        Where PNL-ES intensities come from (:data:`edeflare.sim.pair.WEIGHTS`);
+        also what the background source computes.
+    jitter_us : float
+        Half-width of the ``+random`` variants' jitter.
+    independent_background : bool
+        Thin the background separately for input and ground truth.
+    components : bool
+        Store the pure flare, light and background streams too.
+    flare7k : str, optional
+        A Flare7K++ folder; scripts then use its image pairs.
+    script : ScriptConfig
+        Ranges of the flare scripts (the duration is the recipe's).
+    sensing : SensingConfig
+        The sparse-sensing stage (:mod:`edeflare.sim.sensing`, off unless
+        ``enabled``): scattered light sensed as scattered events, the
+        keep-only target ``gt`` and the simulator's own as ``gt_full``.
+
+    Examples
+    --------
+    >>> c = FlareConfig.from_dict({"variant": "forward", "script": {"exposure": [1, 2]}})
+    >>> c.variant, c.script.exposure
+    ('forward', (1.0, 2.0))
+    >>> FlareConfig.from_dict(c.to_dict()) == c
+    True
+    >>> FlareConfig(variant="fancy")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: variant must be one of (...), got 'fancy'
+    """
+
+    variant: str = "physical"
+    weights: str = "intensity"
+    jitter_us: float = 1000.0
+    independent_background: bool = False
+    components: bool = True
+    flare7k: str | None = None
+    script: ScriptConfig = field(default_factory=ScriptConfig)
+    sensing: SensingConfig = field(default_factory=SensingConfig)
+
+    def __post_init__(self) -> None:
+        if self.variant not in PAIR_VARIANTS:
+            raise ParameterError(f"variant must be one of {PAIR_VARIANTS}, got {self.variant!r}")
+        if self.weights not in WEIGHTS:
+            raise ParameterError(f"weights must be one of {WEIGHTS}, got {self.weights!r}")
+        try:
+            ok = math.isfinite(float(self.jitter_us)) and self.jitter_us >= 0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ParameterError(f"jitter_us must be >= 0, got {self.jitter_us!r}")
+        for key in ("independent_background", "components"):
+            if not isinstance(getattr(self, key), bool):
+                raise ParameterError(f"{key} must be a bool, got {getattr(self, key)!r}")
+        if self.flare7k is not None:
+            object.__setattr__(self, "flare7k", str(self.flare7k))
+        for key, config_type in _NESTED.items():
+            if not isinstance(getattr(self, key), config_type):
+                raise ParameterError(f"{key} must be a {config_type.__name__}")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> FlareConfig:
+        """Build from a mapping (nested configs as mappings); unknown keys are an error."""
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"a flare config must be a mapping, got {type(data).__name__}")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ParameterError(f"unknown flare key(s) {unknown}; valid keys: {sorted(names)}")
+        d = dict(data)
+        for key, config_type in _NESTED.items():
+            if key in d and isinstance(d[key], Mapping):
+                try:
+                    d[key] = config_type.from_dict(d[key])
+                except EdeflareError as exc:
+                    raise ParameterError(f"recipe {key!r}: {exc}") from None
+        return cls(**d)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (:meth:`from_dict` round-trips it).
+
+        ``sensing`` is left out while it is off, so recipes keep the dicts and
+        digests they had before the stage existed.
+        """
+        d: dict[str, Any] = {
+            f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "sensing"
+        }
+        d["script"] = dataclasses.asdict(self.script)
+        if self.sensing.enabled:
+            d["sensing"] = self.sensing.to_dict()
+        return json.loads(json.dumps(d))
+
+
+_NESTED: dict[str, type] = {"script": ScriptConfig, "sensing": SensingConfig}
+
+
+def _check_recipe(recipe: Recipe) -> None:
+    """What a flare config asks of the rest of the recipe."""
+    if recipe.config.variant == "forward" and recipe.background != "synthetic":
+        raise ParameterError(
+            "variant='forward' simulates I_bg + I_f and needs the background as a video: "
+            "use background='synthetic'"
+        )
+
+
+def _identity(config: dict[str, Any]) -> dict[str, Any]:
+    """The Flare7K++ folder by its name: the same images anywhere give the same dataset."""
+    root = config.get("flare7k")
+    return {**config, "flare7k": None if root is None else Path(root).name}
+
+
+def _file_attrs(recipe: Recipe) -> dict[str, Any]:
+    return {"variant": recipe.config.variant}
+
+
+def _file_groups(recipe: Recipe) -> tuple[str, ...] | None:
+    """Without ``components`` a file keeps its pair (and ``gt_full``) only."""
+    return None if recipe.config.components else ("input", "gt", "gt_full")
 
 _FLARE7K: dict[str, list[str]] = {}
 
@@ -71,8 +209,8 @@ def draw_inputs(
     size, duration = recipe.sensor_size, recipe.duration_us
     s_script, s_bg, s_comp, s_fwd = np.random.SeedSequence([recipe.seed, index]).spawn(4)
     ms = duration / 1000
-    config = dataclasses.replace(recipe.script, duration_ms=(ms, ms))
-    names = _flare7k_names(recipe.flare7k) if recipe.flare7k else None
+    config = dataclasses.replace(recipe.config.script, duration_ms=(ms, ms))
+    names = _flare7k_names(recipe.config.flare7k) if recipe.config.flare7k else None
     script = draw_script(config, flare7k_names=names, rng=np.random.default_rng(s_script))
     if script.duration_us != duration:  # ScriptConfig rounds ms to µs
         script = dataclasses.replace(script, duration_us=duration)
@@ -83,10 +221,16 @@ def draw_inputs(
 
 @register_kind(
     "flare",
+    config_type=FlareConfig,
+    validate=_check_recipe,
+    identity=_identity,
+    file_attrs=_file_attrs,
+    file_groups=_file_groups,
     cli_options=(
         "--sequences",
         "--test-sequences",
         "--variant",
+        "--weights",
         "--flare7k",
         "--no-components",
         "--background",
@@ -111,19 +255,30 @@ def flare_sequence(
     timer = StageTimer(STAGES)
     with timer("background"):
         inputs = draw_inputs(recipe, index, source=source)
+    config: FlareConfig = recipe.config
     pair = simulate_pair(
         inputs.script,
         inputs.background,
         recipe.sensor_size,
-        variant=recipe.variant,
-        weights=recipe.weights,
-        jitter_us=recipe.jitter_us,
-        independent_background=recipe.independent_background,
-        flare7k=recipe.flare7k,
+        variant=config.variant,
+        weights=config.weights,
+        jitter_us=config.jitter_us,
+        independent_background=config.independent_background,
+        flare7k=config.flare7k,
         rng=inputs.compose_seed,
         forward_seed=inputs.forward_seed,
         timer=timer,
     )
+    streams = pair.streams
+    if config.sensing.enabled:
+        streams = sparse_sensing(
+            streams,
+            recipe.sensor_size,
+            0,
+            config.sensing,
+            rng=(recipe.seed, index, SENSING_STREAM),
+            t_end_us=recipe.duration_us,
+        )
     return KindSequence(
-        pair.streams, inputs.script, inputs.background.description, timer.seconds, pair.components
+        streams, inputs.script, inputs.background.description, timer.seconds, pair.components
     )

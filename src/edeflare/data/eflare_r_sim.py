@@ -19,11 +19,10 @@ Sequence ``i`` draws from ``numpy.random.SeedSequence([recipe.seed, i])``
 From Python, any number of sequences with any seed (all of them test
 sequences), e.g. to evaluate models trained on other recipes::
 
-    import dataclasses
     from edeflare.data.generate import RECIPES, generate_dataset
 
     if __name__ == "__main__":  # workers are spawned processes
-        recipe = dataclasses.replace(RECIPES["eflare-r-sim-mini"], sequences=20, seed=7)
+        recipe = RECIPES["eflare-r-sim-mini"].replace(sequences=20, seed=7)
         generate_dataset(recipe, "data/r-sim-mini", workers=2)  # data/r-sim-mini/test/*.h5
 """
 
@@ -45,7 +44,7 @@ from .kinds import KindSequence, register_kind
 from .sources import cached_source
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .generate import Recipe
+    from .recipe import Recipe
 
 __all__ = ["optics_sequence"]
 
@@ -58,7 +57,7 @@ def optics_sequence(
     Parameters
     ----------
     recipe : Recipe
-        Of kind ``"optics"``; uses ``optics`` (scene ranges), ``scene`` (the
+        Of kind ``"optics"``; uses ``config`` (scene ranges), ``scene`` (the
         synthetic street), ``background`` / ``background_files``, ``sensor_size``,
         ``duration_us`` and ``seed``.
     index : int
@@ -76,11 +75,9 @@ def optics_sequence(
     Examples
     --------
     >>> from edeflare.data.generate import RECIPES
-    >>> import dataclasses
     >>> from edeflare.sim.optics_scene import OpticsSceneConfig
-    >>> r = dataclasses.replace(RECIPES["eflare-r-sim-mini"], sensor_size=(48, 32),
-    ...                         duration_us=2_000, window_us=1_000,
-    ...                         optics=OpticsSceneConfig(psf_grid=64))
+    >>> r = RECIPES["eflare-r-sim-mini"].replace(sensor_size=(48, 32), duration_us=2_000,
+    ...     window_us=1_000, optics=OpticsSceneConfig(psf_grid=64))
     >>> streams, scene, bg, _, (times, images) = optics_sequence(r, 0)
     >>> sorted(streams), bg["kind"], scene.duration_us, times.tolist(), images.shape
     (['gt', 'input'], 'synthetic', 2000, [1000, 2000], (2, 32, 48))
@@ -89,7 +86,7 @@ def optics_sequence(
     t0 = time.perf_counter()
     s_scene, s_bg, s_pair = np.random.SeedSequence([recipe.seed, int(index)]).spawn(3)
     scene = draw_optics_scene(
-        recipe.optics, duration_us=duration, rng=np.random.default_rng(s_scene)
+        recipe.config, duration_us=duration, rng=np.random.default_rng(s_scene)
     )
     if recipe.background == "recorded":
         if source is None:

@@ -81,11 +81,10 @@ from ..sim.background import BackgroundSource
 from ..sim.compose import Components
 from ..sim.optics_scene import OpticsScene
 from ..sim.script import FlareScript
-from ..sim.sensing import sparse_sensing
 from .dsec_flare import DsecWindow
 from .eflare import SequenceInputs, draw_inputs
 from .kinds import STAGES, GenerationError, get_kind
-from .recipe import KINDS, RECIPES, WEIGHTS, Recipe, list_recipes
+from .recipe import KINDS, RECIPES, WEIGHTS, FlareConfig, Recipe, list_recipes
 from .sources import cached_source, check_index, make_background_source
 
 __all__ = [
@@ -94,6 +93,7 @@ __all__ = [
     "RECIPES",
     "STAGES",
     "WEIGHTS",
+    "FlareConfig",
     "GenerationError",
     "GenerationReport",
     "Recipe",
@@ -156,7 +156,6 @@ class SequenceData:
 GROUPS = tuple(g for g in FILE_GROUPS if g != "gt_full")
 """The streams of every generated sequence (sparse sensing adds ``gt_full``)."""
 
-_SENSING_STREAM = 7  # the sparse-sensing stage draws from SeedSequence((seed, i, 7))
 
 
 def generate_sequence(
@@ -186,21 +185,9 @@ def generate_sequence(
     index = check_index(recipe, index)
     made = get_kind(recipe.kind).make_sequence(recipe, index, source)
     timings = dict.fromkeys(STAGES, 0.0) | made.seconds
-    streams = made.streams
-    if recipe.sensing.enabled:
-        if recipe.kind != "flare":
-            raise ParameterError(f"sparse sensing applies to flare recipes, not {recipe.kind!r}")
-        streams = sparse_sensing(
-            streams,
-            recipe.sensor_size,
-            0,
-            recipe.sensing,
-            rng=(recipe.seed, index, _SENSING_STREAM),
-            t_end_us=recipe.duration_us,
-        )
     return SequenceData(
         index,
-        streams,
+        made.streams,
         made.components,
         made.provenance,
         made.background,
@@ -217,7 +204,8 @@ def write_sequence(
 ) -> dict[str, Any]:
     """Write one sequence file atomically; return its manifest entry (counts, size, SHA-256)."""
     path = Path(path)
-    groups = FILE_GROUPS if recipe.components else ("input", "gt", "gt_full")
+    kind = get_kind(recipe.kind)
+    groups = (kind.file_groups(recipe) if kind.file_groups else None) or FILE_GROUPS
     groups = tuple(g for g in groups if g in data.streams)  # gt_full: sparse sensing only
     attrs = {
         "t_start_us": np.int64(data.t_start_us),
@@ -228,11 +216,12 @@ def write_sequence(
         "recipe_sha256": recipe.sha256(),
         "index": np.int64(data.index),
         "seed": json.dumps([recipe.seed, data.index]),
-        "variant": recipe.variant,
-        "edeflare_version": __version__,
     }
-    if recipe.kind != "flare":  # no composition variant; say what the file is instead
-        del attrs["variant"]
+    # attribute order as before kinds existed (HDF5 keeps it: files stay byte-identical)
+    if kind.file_attrs is not None:  # the flare kind: its composition variant
+        attrs |= kind.file_attrs(recipe)
+    attrs["edeflare_version"] = __version__
+    if kind.file_attrs is None:  # no composition variant; say what the file is instead
         attrs["kind"] = recipe.kind
     write_file(path, {g: data.streams[g] for g in groups}, data.sensor_size, attrs, data.frames)
     return _entry(path, recipe, data.index)

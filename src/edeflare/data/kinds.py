@@ -1,15 +1,17 @@
 """Dataset kinds: what one sequence of a recipe is, each kind registered at its definition.
 
-A kind (``recipe.kind``) brings its own config dataclass (the recipe field
-named by ``config_field``), its ``make_sequence(recipe, index, source)``
-function and what a run checks before it starts. The built-in kinds:
+A kind (``recipe.kind``) brings its own config dataclass (``recipe.config``;
+the :class:`~edeflare.data.recipe.Recipe` holds only what every kind
+shares), its ``make_sequence(recipe, index, source)`` function, what a run
+checks before it starts and what its files record. The built-in kinds:
 
 - ``"flare"`` (:mod:`edeflare.data.eflare`): simulated training pairs
-  (E-Flare-2.7K, eflare-mini), settings in the recipe's composition fields;
+  (E-Flare-2.7K, eflare-mini, eflare-night),
+  :class:`~edeflare.data.eflare.FlareConfig`;
 - ``"optics"`` (:mod:`edeflare.data.eflare_r_sim`): the optics test pairs,
-  :class:`~edeflare.sim.optics_scene.OpticsSceneConfig` in ``recipe.optics``;
+  :class:`~edeflare.sim.optics_scene.OpticsSceneConfig`;
 - ``"dsec"`` (:mod:`edeflare.data.dsec_flare`): windows of a local DSEC copy,
-  :class:`~edeflare.data.dsec_flare.DsecFlareConfig` in ``recipe.dsec``.
+  :class:`~edeflare.data.dsec_flare.DsecFlareConfig`.
 
 This module imports no kind and no recipe: the kinds import it to register,
 and :func:`get_kind` loads the built-in ones on first use.
@@ -20,6 +22,8 @@ Examples
 ['dsec', 'flare', 'optics']
 >>> get_kind("optics").config_field, get_kind("optics").test_only
 ('optics', True)
+>>> get_kind("flare").config_type.__name__, get_kind("flare").config_field is None
+('FlareConfig', True)
 >>> get_kind("nope")  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
@@ -56,6 +60,7 @@ KIND_OPTIONS = (
     "--sequences",
     "--test-sequences",
     "--variant",
+    "--weights",
     "--flare7k",
     "--no-components",
     "--background",
@@ -112,21 +117,27 @@ class DatasetKind:
     make_sequence : callable
         ``(recipe, index, source) -> KindSequence``; ``source`` is the opened
         background source (None when the kind needs none).
+    config_type : type
+        The kind's config dataclass (``recipe.config``; ``from_dict`` /
+        ``to_dict``); ``config_type()`` is the default config.
     config_field : str or None
-        The recipe field holding the kind's own config (None: the recipe's
-        composition fields are the kind's).
-    config_type : type or None
-        That field's dataclass (``from_dict`` / ``to_dict``).
+        The key of the config in the recipe's dict (None: its keys sit beside
+        the common ones, the layout recipe dicts had before kinds existed).
     test_only : bool
         Every sequence is a test sequence.
-    uses_background : bool
-        Sequences draw from the recipe's background source.
     count : callable, optional
         ``config -> number of sequences`` when the config fixes it.
     check : callable, optional
         ``recipe -> None``: find the kind's inputs before a run (errors surface early).
     identity : callable, optional
         ``config dict -> dict`` with paths that depend on the data's place removed.
+    validate : callable, optional
+        ``recipe -> None``: what the config asks of the common fields (checked
+        when a recipe is made).
+    file_attrs : callable, optional
+        ``recipe -> dict``: root attributes of its files (default ``{"kind": name}``).
+    file_groups : callable, optional
+        ``recipe -> tuple or None``: the groups its files keep (None: every stream).
     cli_options : tuple of str
         The kind-specific options of ``edeflare simulate`` (:data:`KIND_OPTIONS`)
         that apply to this kind; the others are refused.
@@ -134,13 +145,15 @@ class DatasetKind:
 
     name: str
     make_sequence: Callable[..., KindSequence]
+    config_type: type
     config_field: str | None = None
-    config_type: type | None = None
     test_only: bool = False
-    uses_background: bool = True
     count: Callable[[Any], int] | None = None
     check: Callable[[Any], None] | None = None
     identity: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    validate: Callable[[Any], None] | None = None
+    file_attrs: Callable[[Any], dict[str, Any]] | None = None
+    file_groups: Callable[[Any], tuple[str, ...] | None] | None = None
     cli_options: tuple[str, ...] = ()
 
 

@@ -1,12 +1,19 @@
 """Recipes: what a dataset holds and how it is simulated (:class:`Recipe`, :data:`RECIPES`).
 
-A recipe is one flat, frozen record: the fields every kind shares (name,
-sizes, seed, background), the composition fields of the training kind and
-one config field per other kind (``optics``, ``dsec``). Its dict
-(:meth:`Recipe.identity`) is each dataset's recorded identity: manifests and
-files store it and its digest. What a sequence *is* belongs to its kind
-(:mod:`edeflare.data.kinds`): the kind validates and serialises its own
-config and makes the sequences.
+A recipe holds what every dataset kind shares (name, sizes, seed, the
+background) and, in ``config``, its kind's own settings (the kind's config
+dataclass, :mod:`edeflare.data.kinds`): :class:`~edeflare.data.eflare.FlareConfig`
+for training pairs, :class:`~edeflare.sim.optics_scene.OpticsSceneConfig` for
+the optics test sets, :class:`~edeflare.data.dsec_flare.DsecFlareConfig` for
+DSEC windows. Its dict (:meth:`Recipe.identity`) is each dataset's recorded
+identity: manifests and files store it and its digest.
+
+That dict keeps the flat layout recipes had before kinds existed (format 1):
+the flare kind's settings sit beside the common ones, another kind's config
+under its own key together with the flare kind's defaults. So every dataset
+made before the split keeps its digest and resumes (``tests/data/test_recipe.py``
+pins them). :meth:`Recipe.from_dict` reads that layout; :meth:`Recipe.replace`
+takes the same flat keys.
 """
 
 from __future__ import annotations
@@ -14,10 +21,8 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,18 +32,18 @@ from ..errors import EdeflareError, ParameterError
 from ..events import check_sensor_size
 from ..sim.background import SceneConfig, relative_names
 from ..sim.compose import AccumulationParams
-from ..sim.optics_scene import OpticsSceneConfig
-from ..sim.pair import PAIR_VARIANTS, WEIGHTS
+from ..sim.pair import WEIGHTS
 from ..sim.script import ScriptConfig
 from ..sim.sensing import SensingConfig
-from .dsec_flare import DsecFlareConfig
-from .kinds import GenerationError, get_kind, list_kinds
+from .eflare import FlareConfig
+from .kinds import DatasetKind, GenerationError, get_kind, list_kinds
 from .sources import make_background_source
 
 __all__ = [
     "KINDS",
     "RECIPES",
     "WEIGHTS",
+    "FlareConfig",
     "GenerationError",
     "Recipe",
     "list_recipes",
@@ -48,6 +53,8 @@ __all__ = [
 KINDS = ("flare", "optics", "dsec")
 """The built-in dataset kinds (:mod:`edeflare.data.kinds`): simulated training pairs,
 optics test pairs, DSEC windows."""
+
+_DEFAULT_KIND = "flare"
 
 
 @dataclass(frozen=True)
@@ -63,27 +70,11 @@ class Recipe:
     duration_us, window_us : int
         Sequence length and training window (a sequence holds ``duration / window`` windows).
     sensor_size : (width, height)
-    variant : str
-        ``"physical"`` (PNL-ES), ``"simple"``, ``"simple+random"``,
-        ``"physical+random"``, ``"no-light"`` or ``"forward"`` (full forward
-        model; synthetic backgrounds only).
+    seed : int
+        Dataset seed.
     background : {"synthetic", "recorded"}
     background_files : tuple of str
         Event files for ``background="recorded"``.
-    weights : {"intensity", "accumulation", "counts"}
-        Where PNL-ES intensities come from (see :data:`WEIGHTS`).
-    jitter_us : float
-        Half-width of the ``+random`` variants' jitter.
-    independent_background : bool
-        Thin the background separately for input and ground truth.
-    components : bool
-        Store the pure flare, light and background streams too.
-    seed : int
-        Dataset seed.
-    flare7k : str, optional
-        A Flare7K++ folder; scripts then use its image pairs.
-    script : ScriptConfig
-        Ranges of the flare scripts (the duration is the recipe's).
     scene : SceneConfig
         Ranges of the synthetic backgrounds.
     accumulation : AccumulationParams
@@ -92,20 +83,19 @@ class Recipe:
         See :data:`KINDS`. For ``"optics"`` and ``"dsec"`` every sequence is a
         test sequence (``test_sequences`` follows ``sequences``), and for
         ``"dsec"`` the windows set ``sequences``.
-    optics : OpticsSceneConfig
-        Ranges of the optics scenes (kind ``"optics"``).
-    dsec : DsecFlareConfig
-        DSEC folder and windows (kind ``"dsec"``).
-    sensing : SensingConfig
-        The sparse-sensing stage (:mod:`edeflare.sim.sensing`; kind ``"flare"``,
-        off unless ``enabled``): scattered light sensed as scattered events, the
-        keep-only target ``gt`` and the simulator's own as ``gt_full``.
+    config : dataclass, optional
+        The kind's own settings (default: its config type's defaults):
+        :class:`~edeflare.data.eflare.FlareConfig` (variant, weights, flare
+        scripts, sparse sensing...), :class:`~edeflare.sim.optics_scene.OpticsSceneConfig`
+        or :class:`~edeflare.data.dsec_flare.DsecFlareConfig`.
 
     Examples
     --------
     >>> r = Recipe.from_dict({"sequences": 4, "test_sequences": 1, "sensor_size": [64, 48]})
-    >>> r.split_of(3), r.windows_per_sequence
-    ('test', 5)
+    >>> r.split_of(3), r.windows_per_sequence, r.config.variant
+    ('test', 5, 'physical')
+    >>> r.replace(variant="forward", sequences=6).config.variant
+    'forward'
     >>> Recipe.from_dict({"sequencs": 4})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
@@ -118,22 +108,13 @@ class Recipe:
     duration_us: int = 100_000
     window_us: int = 20_000
     sensor_size: tuple[int, int] = (640, 480)
-    variant: str = "physical"
+    seed: int = 0
     background: str = "synthetic"
     background_files: tuple[str, ...] = ()
-    weights: str = "intensity"
-    jitter_us: float = 1000.0
-    independent_background: bool = False
-    components: bool = True
-    seed: int = 0
-    flare7k: str | None = None
-    script: ScriptConfig = field(default_factory=ScriptConfig)
     scene: SceneConfig = field(default_factory=SceneConfig)
     accumulation: AccumulationParams = field(default_factory=AccumulationParams)
-    kind: str = "flare"
-    optics: OpticsSceneConfig = field(default_factory=OpticsSceneConfig)
-    dsec: DsecFlareConfig = field(default_factory=DsecFlareConfig)
-    sensing: SensingConfig = field(default_factory=SensingConfig)
+    kind: str = _DEFAULT_KIND
+    config: Any = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -141,9 +122,15 @@ class Recipe:
         if not isinstance(self.kind, str) or self.kind not in list_kinds():
             raise ParameterError(f"kind must be one of {tuple(list_kinds())}, got {self.kind!r}")
         kind = get_kind(self.kind)
-        own = getattr(self, kind.config_field) if kind.config_field else None
-        if kind.count is not None and isinstance(own, kind.config_type):
-            object.__setattr__(self, "sequences", kind.count(own))
+        if self.config is None:
+            object.__setattr__(self, "config", kind.config_type())
+        if not isinstance(self.config, kind.config_type):
+            raise ParameterError(
+                f"a {self.kind!r} recipe's config must be a {kind.config_type.__name__}, "
+                f"got {type(self.config).__name__}"
+            )
+        if kind.count is not None:
+            object.__setattr__(self, "sequences", kind.count(self.config))
         if kind.test_only:
             object.__setattr__(self, "test_sequences", self.sequences)
         for key in ("sequences", "test_sequences", "duration_us", "window_us", "seed"):
@@ -168,8 +155,6 @@ class Recipe:
             raise ParameterError(
                 f"sensor_size must be (width, height), got {self.sensor_size!r}"
             ) from None
-        if self.variant not in PAIR_VARIANTS:
-            raise ParameterError(f"variant must be one of {PAIR_VARIANTS}, got {self.variant!r}")
         if self.background not in ("synthetic", "recorded"):
             raise ParameterError(
                 f"background must be 'synthetic' or 'recorded', got {self.background!r}"
@@ -177,18 +162,11 @@ class Recipe:
         object.__setattr__(self, "background_files", tuple(str(p) for p in self.background_files))
         if self.background == "recorded" and not self.background_files:
             raise ParameterError("background='recorded' needs background_files (event files)")
-        if self.weights not in WEIGHTS:
-            raise ParameterError(f"weights must be one of {WEIGHTS}, got {self.weights!r}")
-        if self.variant == "forward" and self.background != "synthetic":
-            raise ParameterError(
-                "variant='forward' simulates I_bg + I_f and needs the background as a video: "
-                "use background='synthetic'"
-            )
-        if not (math.isfinite(float(self.jitter_us)) and self.jitter_us >= 0):
-            raise ParameterError(f"jitter_us must be >= 0, got {self.jitter_us!r}")
-        for key, config_type in _nested().items():
+        for key, config_type in _NESTED.items():
             if not isinstance(getattr(self, key), config_type):
                 raise ParameterError(f"{key} must be a {config_type.__name__}")
+        if kind.validate is not None:
+            kind.validate(self)
 
     @property
     def windows_per_sequence(self) -> int:
@@ -199,66 +177,126 @@ class Recipe:
         """``"train"`` or ``"test"``: the last ``test_sequences`` indices are the test split."""
         return "test" if index >= self.sequences - self.test_sequences else "train"
 
+    def replace(self, **changes: Any) -> Recipe:
+        """A copy with ``changes``: common fields, the kind's config, or the config's fields.
+
+        Keys are those of :meth:`to_dict`: a common field (``sequences``,
+        ``seed``...), the kind's config key (``optics=``, ``dsec=``: a whole
+        config) or one of the config's fields (a flare recipe's ``variant``,
+        ``script``...). An unknown key is an error listing the valid ones.
+
+        Examples
+        --------
+        >>> r = RECIPES["eflare-mini"].replace(seed=3, variant="simple", components=False)
+        >>> r.seed, r.config.variant, r.config.components, r.sensor_size
+        (3, 'simple', False, (346, 260))
+        """
+        kind = get_kind(changes.get("kind", self.kind))
+        common = {f.name for f in dataclasses.fields(self)} - {"config"}
+        own = _config_keys(kind)
+        unknown = sorted(set(changes) - common - own - {"config"} - _key_of(kind))
+        if unknown:
+            raise ParameterError(
+                f"unknown recipe key(s) {unknown} for a {kind.name!r} recipe; valid keys: "
+                f"{sorted(common | own | _key_of(kind))}"
+            )
+        config = changes.get("config")
+        for key in _key_of(kind):
+            if key in changes:
+                config = changes[key]
+        if config is None:
+            config = self.config if isinstance(self.config, kind.config_type) else None
+        mine = {k: v for k, v in changes.items() if k in own}
+        if mine:
+            config = dataclasses.replace(config or kind.config_type(), **mine)
+        kept = {k: v for k, v in changes.items() if k in common}
+        return dataclasses.replace(self, **kept, config=config)
+
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Recipe:
-        """Build from a mapping (e.g. a manifest's ``recipe``); unknown keys are an error."""
+        """Build from a recipe dict (e.g. a manifest's ``recipe``); unknown keys are an error.
+
+        Another kind's dict holds the flare kind's default settings too (the
+        format-1 layout, see the module docstring); they are checked to be the
+        defaults and otherwise ignored.
+        """
         if not isinstance(data, Mapping):
             raise ParameterError(f"a recipe must be a mapping, got {type(data).__name__}")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
+        kind_name = data.get("kind", _DEFAULT_KIND)
+        if not isinstance(kind_name, str) or kind_name not in list_kinds():
+            raise ParameterError(f"kind must be one of {tuple(list_kinds())}, got {kind_name!r}")
+        kind = get_kind(kind_name)
+        common = {f.name for f in dataclasses.fields(cls)} - {"config"}
+        own = _config_keys(kind) | _key_of(kind)
+        legacy = _legacy_flare_defaults() if kind.config_field is not None else {}
+        unknown = sorted(set(data) - common - own - set(legacy))
         if unknown:
-            raise ParameterError(f"unknown recipe key(s) {unknown}; valid keys: {sorted(names)}")
-        d = dict(data)
-        for key, config_type in _nested().items():
+            raise ParameterError(
+                f"unknown recipe key(s) {unknown}; valid keys: {sorted(common | own)}"
+            )
+        for key in set(data) & set(legacy):
+            if json.loads(json.dumps(data[key])) != legacy[key]:
+                raise ParameterError(
+                    f"recipe key {key!r} applies to 'flare' recipes, not to a {kind_name!r} one"
+                )
+        d = {k: v for k, v in data.items() if k in common}
+        for key, config_type in _NESTED.items():
             if key in d and isinstance(d[key], Mapping):
                 try:
                     d[key] = config_type.from_dict(d[key])
                 except EdeflareError as exc:
                     raise ParameterError(f"recipe {key!r}: {exc}") from None
+        if kind.config_field is None:
+            raw: Any = {k: v for k, v in data.items() if k in own}
+        else:
+            raw = data.get(kind.config_field)
+        if isinstance(raw, Mapping):
+            try:
+                raw = kind.config_type.from_dict(raw)
+            except EdeflareError as exc:
+                where = kind.config_field or kind_name
+                raise ParameterError(f"recipe {where!r}: {exc}") from None
         if "sensor_size" in d:
             d["sensor_size"] = tuple(d["sensor_size"])
         if "background_files" in d:
             d["background_files"] = tuple(d["background_files"])
-        return cls(**d)
+        return cls(**d, config=raw)
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict (:meth:`from_dict` round-trips it).
-
-        Settings of the other kinds are left out (so flare recipes keep the
-        dicts and digests they had before kinds existed).
-        """
-        d = {f.name: _asdict(getattr(self, f.name)) for f in dataclasses.fields(self)}
-        for name in list_kinds():
-            kind = get_kind(name)
-            if kind.config_field is None:
-                continue
-            if name == self.kind:
-                d[kind.config_field] = getattr(self, kind.config_field).to_dict()
-            else:
-                del d[kind.config_field]
+        """A JSON-ready dict in the format-1 layout (:meth:`from_dict` round-trips it)."""
+        d: dict[str, Any] = {
+            f.name: _asdict(getattr(self, f.name))
+            for f in dataclasses.fields(self)
+            if f.name != "config"
+        }
+        kind = get_kind(self.kind)
         if self.kind == _DEFAULT_KIND:
             del d["kind"]
-        if self.sensing.enabled:
-            d["sensing"] = self.sensing.to_dict()
-        else:  # off: recipes keep the dicts and digests they had before the stage existed
-            del d["sensing"]
+        if kind.config_field is None:
+            d.update(self.config.to_dict())
+        else:
+            d.update(_legacy_flare_defaults())
+            d[kind.config_field] = self.config.to_dict()
         return json.loads(json.dumps(d))
 
     def identity(self) -> dict[str, Any]:
         """:meth:`to_dict` with input paths reduced to names that do not depend on their place.
 
         Background files become paths relative to their common folder and the
-        Flare7K++ folder its name, so the same data in another place gives the
-        same manifest and byte-identical files. This is what manifests record.
+        kind's own paths (a Flare7K++ folder, a DSEC root) names or nothing,
+        so the same data in another place gives the same manifest and
+        byte-identical files. This is what manifests record.
         """
         d = self.to_dict()
         d["background_files"] = (
             relative_names(self.background_files) if self.background_files else []
         )
-        d["flare7k"] = None if self.flare7k is None else Path(self.flare7k).name
         kind = get_kind(self.kind)
-        if kind.identity is not None and kind.config_field is not None:
-            d[kind.config_field] = kind.identity(d[kind.config_field])
+        if kind.identity is not None:
+            if kind.config_field is None:
+                d.update(kind.identity({k: d[k] for k in self.config.to_dict()}))
+            else:
+                d[kind.config_field] = kind.identity(d[kind.config_field])
         return d
 
     def sha256(self) -> str:
@@ -267,22 +305,23 @@ class Recipe:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-_DEFAULT_KIND = "flare"
+_NESTED: dict[str, type] = {"scene": SceneConfig, "accumulation": AccumulationParams}
 
 
-def _nested() -> dict[str, type]:
-    """Recipe fields holding config dataclasses, and their types."""
-    out: dict[str, type] = {
-        "script": ScriptConfig,
-        "scene": SceneConfig,
-        "accumulation": AccumulationParams,
-        "sensing": SensingConfig,
-    }
-    for name in list_kinds():
-        kind = get_kind(name)
-        if kind.config_field is not None and kind.config_type is not None:
-            out[kind.config_field] = kind.config_type
-    return out
+def _config_keys(kind: DatasetKind) -> set[str]:
+    """The config's own field names when they sit beside the common keys (flat kinds)."""
+    if kind.config_field is not None:
+        return set()
+    return {f.name for f in dataclasses.fields(kind.config_type)}
+
+
+def _key_of(kind: DatasetKind) -> set[str]:
+    return set() if kind.config_field is None else {kind.config_field}
+
+
+def _legacy_flare_defaults() -> dict[str, Any]:
+    """The flare kind's default settings, which format-1 dicts of other kinds carry."""
+    return FlareConfig().to_dict()
 
 
 def _asdict(value: Any) -> Any:
@@ -333,9 +372,8 @@ for _recipe in (
         sequences=180,
         test_sequences=12,
         sensor_size=(346, 260),
-        script=_NIGHT_SCRIPT,
         scene=_NIGHT_SCENE,
-        sensing=SensingConfig(enabled=True),
+        config=FlareConfig(script=_NIGHT_SCRIPT, sensing=SensingConfig(enabled=True)),
     ),
 ):
     RECIPES.register(_recipe.name, _recipe)
@@ -345,9 +383,9 @@ the optics test sets after E-Flare-R's physical model, ``eflare-r-sim`` (30 sequ
 100 ms at 640x480, the paper's crop: 150 test windows, as E-Flare-R's 150 pairs) and
 ``eflare-r-sim-mini`` (20 at 346x260: 100 test windows); and ``dsec-flare``, the paper's
 DSEC-Flare windows (15 of 100 ms at 640x480 by default) cut from a local DSEC copy
-(``dsec=DsecFlareConfig(root=...)``), without ground truth; and ``eflare-night`` (180 of
-100 ms at 346x260), the simulator calibrated on real night recordings: weaker scattered
-light, travelling lights of 3-28 px, and the sparse-sensing stage
+(``recipe.replace(dsec=DsecFlareConfig(root=...))``), without ground truth; and
+``eflare-night`` (180 of 100 ms at 346x260), the simulator calibrated on real night
+recordings: weaker scattered light, travelling lights of 3-28 px, and the sparse-sensing stage
 (:mod:`edeflare.sim.sensing`), whose ``gt`` is a keep-only target."""
 
 

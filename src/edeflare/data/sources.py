@@ -24,16 +24,21 @@ _SOURCES: dict[str, BackgroundSource] = {}
 
 
 def make_background_source(recipe: Any) -> BackgroundSource:
-    """The background source a recipe asks for (recorded files or synthetic streets)."""
+    """The background source a recipe asks for (recorded files or synthetic streets).
+
+    Its intensities follow the kind's ``weights`` where its config has them
+    (the flare kind's PNL-ES weights); other kinds take the default, ``"intensity"``.
+    """
+    weights = getattr(recipe.config, "weights", "intensity")
     if recipe.background == "recorded":
         return RecordedBackground(
             recipe.background_files,
-            intensity="counts" if recipe.weights == "counts" else "accumulation",
+            intensity="counts" if weights == "counts" else "accumulation",
             accumulation=recipe.accumulation,
         )
     intensity = {"intensity": "video", "accumulation": "accumulation", "counts": "counts"}
     return SyntheticBackground(
-        recipe.scene, intensity=intensity[recipe.weights], accumulation=recipe.accumulation
+        recipe.scene, intensity=intensity[weights], accumulation=recipe.accumulation
     )
 
 

@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from .._registry import Registry
-from ..data.generate import RECIPES, Recipe, generate_dataset
+from ..data.generate import RECIPES, FlareConfig, Recipe, generate_dataset
 from ..errors import ParameterError
 from ..io._atomic import atomic_path
 from ..io.sequence import list_sequences
@@ -121,7 +121,7 @@ class AblationConfig:
     def recipe_for(self, variant: str) -> Recipe:
         """The training recipe of one variant."""
         name = f"{self.train_recipe.name}-{variant}"
-        return dataclasses.replace(self.train_recipe, name=name, variant=variant)
+        return self.train_recipe.replace(name=name, variant=variant)
 
     def replace(self, **changes: Any) -> AblationConfig:
         """A copy with some fields changed (``iterations`` and ``sequences`` are shortcuts).
@@ -167,8 +167,8 @@ def _ablations() -> dict[str, AblationConfig]:
         duration_us=40_000,
         sensor_size=(64, 48),
         seed=2026,
-        script=ScriptConfig(psf_grid=128),
         scene=SceneConfig(fps=1000.0),
+        config=FlareConfig(script=ScriptConfig(psf_grid=128)),
     )
     small_test = dataclasses.replace(
         RECIPES["eflare-r-sim-mini"],
@@ -177,7 +177,7 @@ def _ablations() -> dict[str, AblationConfig]:
         duration_us=20_000,
         sensor_size=(64, 48),
         seed=9999,
-        optics=OpticsSceneConfig(psf_grid=128),
+        config=OpticsSceneConfig(psf_grid=128),
     )
     cpu = TRAIN_PRESETS["cpu"]
     return {
@@ -197,13 +197,13 @@ def _ablations() -> dict[str, AblationConfig]:
         ),
         "cpu": AblationConfig(
             "cpu",
-            dataclasses.replace(RECIPES["eflare-mini"], test_sequences=0, seed=2026),
+            RECIPES["eflare-mini"].replace(test_sequences=0, seed=2026),
             RECIPES["eflare-r-sim-mini"],
             dataclasses.replace(cpu, iterations=2000, val_every=10**9),
         ),
         "paper": AblationConfig(
             "paper",
-            dataclasses.replace(RECIPES["eflare-2.7k"], test_sequences=0),
+            RECIPES["eflare-2.7k"].replace(test_sequences=0),
             RECIPES["eflare-r-sim"],
             TRAIN_PRESETS["paper"],
         ),

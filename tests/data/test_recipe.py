@@ -1,0 +1,104 @@
+"""Recipes: common fields plus the kind's config, with the format-1 dicts and digests kept."""
+
+from __future__ import annotations
+
+import pytest
+
+from edeflare.data.dsec_flare import DsecFlareConfig
+from edeflare.data.eflare import FlareConfig
+from edeflare.data.recipe import RECIPES, Recipe
+from edeflare.errors import ParameterError
+from edeflare.sim.optics_scene import OpticsSceneConfig
+from edeflare.sim.script import ScriptConfig
+
+# Digests recorded at dc60cee, before the recipe was split into common fields and the
+# kind's config: datasets made then must still resume (their files store these).
+DIGESTS_BEFORE_THE_SPLIT = {
+    "dsec-flare": "c8a659c1befbdba42ebfab7c4b2534a72a3f96b1203b25718ba22a507fd4eeda",
+    "eflare-2.7k": "835283772cee62c53407fed94284db15f5276c157fe5387f5587d8d19c63b714",
+    "eflare-mini": "2810cf3cd796a0abaede6caa1f99007e9e2e12f31a60356b6a5515da0024bda4",
+    "eflare-night": "d00bcb15bec5048ecf80e2e03bb929ed102762519c3371d37b0d91a052dab68b",
+    "eflare-r-sim": "3b3ab7daeceeef5903a7de172fd2e27eab1c4feccc81cf038b837f4232574d4b",
+    "eflare-r-sim-mini": "b758921262a863ab7eb4fdc20535c7fb25be155416caaa60141c3bd9b484a0f5",
+}
+FLAT_BEFORE_THE_SPLIT = {  # old flat dicts and their digests at dc60cee
+    "beb8317d7f81eae1f72cbec6bb35a8ea0cd893ed86e8fa218429ef07143b33c2": {
+        "variant": "forward",
+        "sequences": 5,
+        "test_sequences": 1,
+        "flare7k": "/x/y/Flare7K",
+        "components": False,
+        "weights": "counts",
+        "jitter_us": 10.0,
+        "script": {"exposure": [1.0, 2.0]},
+        "accumulation": {"base_level": 3},
+    },
+    "cfd5f195afdd2c9fc8752fdac068bca7ccf78b999f9643a2b2bad950e83329c7": {
+        "background": "recorded",
+        "background_files": ["/a/b.h5", "/a/c/d.h5"],
+    },
+    "43ea752107d2fd5672ad96b08c885540a90994ee1739e1ac1ed43d1e5beb38df": {
+        "kind": "optics",
+        "background": "recorded",
+        "background_files": ["/a/b.h5"],
+        "optics": {"psf_grid": 64},
+    },
+    "aa9c6fff514bff409dab159bc1d533b745f0f65b4df2c3fcb3da973b29ce059f": {
+        "kind": "dsec",
+        "dsec": {"root": "/data/dsec", "rectify": True},
+    },
+}
+
+
+@pytest.mark.parametrize("name", sorted(DIGESTS_BEFORE_THE_SPLIT))
+def test_named_recipes_keep_their_digests_and_round_trip(name):
+    recipe = RECIPES[name]
+    assert recipe.sha256() == DIGESTS_BEFORE_THE_SPLIT[name]
+    assert Recipe.from_dict(recipe.to_dict()) == recipe
+
+
+@pytest.mark.parametrize("digest", sorted(FLAT_BEFORE_THE_SPLIT))
+def test_old_flat_dicts_read_to_the_same_digest(digest):
+    recipe = Recipe.from_dict(FLAT_BEFORE_THE_SPLIT[digest])
+    assert recipe.sha256() == digest
+    assert Recipe.from_dict(recipe.to_dict()) == recipe
+
+
+def test_each_kind_holds_its_own_config():
+    assert isinstance(RECIPES["eflare-mini"].config, FlareConfig)
+    assert isinstance(RECIPES["eflare-r-sim"].config, OpticsSceneConfig)
+    assert isinstance(RECIPES["dsec-flare"].config, DsecFlareConfig)
+    assert RECIPES["eflare-night"].config.sensing.enabled
+    assert not RECIPES["eflare-mini"].config.sensing.enabled
+    # the flare kind's keys sit beside the common ones; another kind's under its name
+    assert RECIPES["eflare-mini"].to_dict()["variant"] == "physical"
+    assert RECIPES["eflare-r-sim"].to_dict()["optics"]["psf_grid"] == OpticsSceneConfig().psf_grid
+    with pytest.raises(ParameterError, match="config must be a OpticsSceneConfig"):
+        Recipe(kind="optics", config=FlareConfig())
+
+
+def test_replace_routes_each_key_to_where_it_lives():
+    mini = RECIPES["eflare-mini"]
+    r = mini.replace(seed=4, variant="simple", script=ScriptConfig(psf_grid=64))
+    assert (r.seed, r.config.variant, r.config.script.psf_grid) == (4, "simple", 64)
+    assert r.config.weights == mini.config.weights and r.sensor_size == mini.sensor_size
+    assert mini.config.variant == "physical"  # frozen: the original is unchanged
+    optics = RECIPES["eflare-r-sim-mini"].replace(optics=OpticsSceneConfig(psf_grid=64))
+    assert optics.config.psf_grid == 64 and optics.kind == "optics"
+    with pytest.raises(ParameterError, match=r"key\(s\) \['variant'\] for a 'optics'"):
+        RECIPES["eflare-r-sim-mini"].replace(variant="simple")
+    with pytest.raises(ParameterError, match=r"\['variantt'\].*valid keys: .*'variant'"):
+        mini.replace(variantt="simple")
+
+
+def test_the_flare_configs_checks_reach_the_recipe():
+    with pytest.raises(ParameterError, match="variant must be one of"):
+        Recipe.from_dict({"variant": "fancy"})
+    with pytest.raises(ParameterError, match=r"variant='forward' .* needs the background"):
+        Recipe.from_dict({"variant": "forward", "background": "recorded",
+                          "background_files": ["a.h5"]})  # fmt: skip
+    with pytest.raises(ParameterError, match="'variant' applies to 'flare' recipes"):
+        Recipe.from_dict({"kind": "optics", "variant": "forward"})
+    # an optics dict carries the flare kind's defaults (format 1): accepted as they are
+    d = RECIPES["eflare-r-sim"].to_dict()
+    assert d["variant"] == "physical" and Recipe.from_dict(d) == RECIPES["eflare-r-sim"]
