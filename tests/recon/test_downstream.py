@@ -13,6 +13,7 @@ from edeflare.cli import main
 from edeflare.data.generate import RECIPES, generate_dataset
 from edeflare.eval.benchmark import GROUND_TRUTH, benchmark
 from edeflare.eval.downstream import image_scores
+from edeflare.eval.flare_score import flare_geometry, flare_score
 from edeflare.events import make_events
 from edeflare.io import open_events
 from edeflare.io.sequence import read_frames, write_sequence
@@ -60,7 +61,7 @@ def test_benchmark_scores_each_stream_against_the_frames_after_the_burn_in(split
     per_seq = 80_000 // 20_000 - BURN_IN
     assert all(d["windows"] == 2 * per_seq for d in result.downstream.values())
     # the raw row by hand: reconstruct the input window by window, score windows 2 and 3
-    psnr, ssim = [], []
+    psnr, ssim, flare = [], [], []
     for path in sorted(split.glob("*.h5")):
         times, frames = read_frames(path)
         assert times.tolist() == [20_000, 40_000, 60_000, 80_000]
@@ -74,8 +75,12 @@ def test_benchmark_scores_each_stream_against_the_frames_after_the_burn_in(split
                 )
                 psnr.append(p)
                 ssim.append(s)
+                clean = centre_image(intensity_to_image(frames[k]))
+                flare.append(flare_score(centre_image(image), flare_geometry(clean)))
     assert result.downstream["raw"]["psnr"] == pytest.approx(np.mean(psnr))
     assert result.downstream["raw"]["ssim"] == pytest.approx(np.mean(ssim))
+    assert result.downstream["raw"]["flare"] == pytest.approx(np.nanmedian(flare))
+    assert "flare score" in result.downstream_markdown()
     # PFD-A removes events, so its reconstruction differs from the input's
     assert result.downstream["pfd-a"] != result.downstream["raw"]
     assert "| ground truth |" in result.downstream_markdown()

@@ -85,9 +85,15 @@ class BenchmarkResult:
         """Reconstruction table in Markdown (empty string without downstream scores)."""
         if not self.downstream:
             return ""
-        lines = ["| Stream | PSNR (dB)↑ | SSIM↑ | windows |", "|---|---|---|---|"]
+        lines = [
+            "| Stream | PSNR (dB)↑ | SSIM↑ | flare score↓ | windows |",
+            "|---|---|---|---|---|",
+        ]
         for name, d in self.downstream.items():
-            lines.append(f"| {name} | {d['psnr']:.2f} | {d['ssim']:.4f} | {d['windows']} |")
+            flare = d.get("flare", math.nan)
+            lines.append(
+                f"| {name} | {d['psnr']:.2f} | {d['ssim']:.4f} | {flare:.3f} | {d['windows']} |"
+            )
         return "\n".join(lines) + "\n"
 
     def table(self) -> ResultsTable:

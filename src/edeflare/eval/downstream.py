@@ -12,7 +12,11 @@ absolute brightness, so both images are first shifted to mean 0.5
 (:func:`edeflare.recon.clips.centre_image`), then:
 
 - **PSNR** ``10 log10(1 / MSE)`` of the images in ``[0, 1]``;
-- **SSIM** (:func:`skimage.metrics.structural_similarity`, ``data_range=1``).
+- **SSIM** (:func:`skimage.metrics.structural_similarity`, ``data_range=1``);
+- the **flare score** of the reconstruction (:func:`edeflare.eval.flare_score.flare_score`
+  of the centred image: its energy around the light over the light's own), on the
+  regions located on the clean image of the same instant: lower is less flare.
+  Its median over windows, as a ratio has a heavy tail.
 
 The first :data:`~edeflare.recon.clips.BURN_IN` windows of each sequence are
 not scored: the network has seen too few events to know the scene. Means are
@@ -27,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..recon.clips import centre_image, intensity_to_image
+from .flare_score import flare_geometry, flare_score
 
 __all__ = ["DownstreamScores", "image_scores"]
 
@@ -55,22 +60,40 @@ def image_scores(image: np.ndarray, reference: np.ndarray) -> tuple[float, float
 
 @dataclass
 class DownstreamScores:
-    """PSNR and SSIM per scored window of one stream kind (a method, the input, the GT)."""
+    """PSNR, SSIM and flare score per scored window of one stream kind (a method, the
+    input, the GT).
+
+    Examples
+    --------
+    >>> clean = np.full((40, 60), 0.05); clean[19:22, 29:32] = 1.0   # a lamp in the dark
+    >>> image = intensity_to_image(clean)
+    >>> flared = image.copy(); flared[20, 5:55] = image.max()          # and a streak
+    >>> s = DownstreamScores(); s.add(image, clean); s.add(flared, clean)
+    >>> [round(f, 2) for f in s.flare], s.means()["windows"]
+    ([0.0, 2.55], 2)
+    """
 
     psnr: list[float] = field(default_factory=list)
     ssim: list[float] = field(default_factory=list)
+    flare: list[float] = field(default_factory=list)
 
     def add(self, image: np.ndarray, intensity: np.ndarray) -> None:
         """Score one reconstructed image against the clean intensity image of its instant."""
-        psnr, ssim = image_scores(centre_image(image), centre_image(intensity_to_image(intensity)))
+        clean = centre_image(intensity_to_image(intensity))
+        mine = centre_image(image)
+        psnr, ssim = image_scores(mine, clean)
         self.psnr.append(psnr)
         self.ssim.append(ssim)
+        self.flare.append(flare_score(mine, flare_geometry(clean)))
 
     def means(self) -> dict[str, float]:
-        """``{"psnr", "ssim", "windows"}`` (NaN without scored windows)."""
+        """``{"psnr", "ssim", "flare", "windows"}``: means, the flare score's median over
+        windows where it is defined (NaN without any)."""
         n = len(self.psnr)
+        flare = [f for f in self.flare if math.isfinite(f)]
         return {
             "psnr": float(np.mean(self.psnr)) if n else math.nan,
             "ssim": float(np.mean(self.ssim)) if n else math.nan,
+            "flare": float(np.median(flare)) if flare else math.nan,
             "windows": n,
         }

@@ -180,21 +180,22 @@ def downstream_table_html(result: BenchmarkResult) -> str:
     --------
     >>> from edeflare.eval.evaluate import Evaluation
     >>> r = BenchmarkResult(Evaluation(), {}, {"raw": {"psnr": 20.0, "ssim": 0.5, "windows": 3}})
-    >>> "<td>raw</td><td>20.00</td><td>0.5000</td><td>3</td>" in downstream_table_html(r)
+    >>> "<td>raw</td><td>20.00</td><td>0.5000</td><td>–</td><td>3</td>" in downstream_table_html(r)
     True
     """
     if not result.downstream:
         return ""
     lines = [
         '<table id="downstream">',
-        "<thead><tr><th>Stream</th><th>PSNR (dB) ↑</th><th>SSIM ↑</th><th>windows</th></tr>"
-        "</thead>",
+        "<thead><tr><th>Stream</th><th>PSNR (dB) ↑</th><th>SSIM ↑</th><th>flare score ↓</th>"
+        "<th>windows</th></tr></thead>",
         "<tbody>",
     ]
     for name, d in result.downstream.items():
         lines.append(
             f"<tr><td>{_e(name)}</td><td>{_fmt(d['psnr'], 2)}</td>"
-            f"<td>{_fmt(d['ssim'], 4)}</td><td>{int(d['windows'])}</td></tr>"
+            f"<td>{_fmt(d['ssim'], 4)}</td><td>{_fmt(d.get('flare', math.nan), 3)}</td>"
+            f"<td>{int(d['windows'])}</td></tr>"
         )
     lines += ["</tbody>", "</table>"]
     return "\n".join(lines)
