@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import same_events
 from edeflare.data.generate import generate_sequence, write_sequence
 from edeflare.data.recipe import RECIPES, FlareConfig, Recipe
 from edeflare.errors import ParameterError
@@ -126,3 +127,25 @@ def test_a_sensing_recipe_writes_a_keep_only_target_and_the_full_one(tmp_path):
     assert RECIPES["eflare-night"].config.sensing.enabled
     assert "sensing" not in RECIPES["eflare-mini"].to_dict()  # old digests unchanged
     assert EVENT_DTYPE == inp.dtype
+
+
+def test_hot_pixels_join_the_input_not_the_target_and_are_off_by_default(rng):
+    streams = _sequence(rng, n_flare=100)
+    base = SensingConfig(survival=(1.0, 1.0), noise_rate=(0.0, 0.0))
+    plain = sparse_sensing(streams, SIZE, 0, base, rng=4, t_end_us=100_000)
+    cfg = SensingConfig(survival=(1.0, 1.0), noise_rate=(0.0, 0.0), hot_pixels=(3, 3),
+                        hot_rate=(20_000.0, 20_000.0))  # fmt: skip
+    out = sparse_sensing(streams, SIZE, 0, cfg, rng=4, t_end_us=100_000)
+    extra = out["input"][~_member(out["input"], plain["input"])]
+    pix = extra["y"].astype(np.int64) * SIZE[0] + extra["x"]
+    counts = np.bincount(np.unique(pix, return_inverse=True)[1])
+    assert counts.size == 3  # three pixels
+    assert np.all(np.abs(counts - 2000) < 5 * np.sqrt(2000))  # 20 k/s for 100 ms, Poisson
+    for p in np.unique(pix):  # each almost all one polarity
+        share = extra["p"][pix == p].mean()
+        assert share > 0.9 or share < 0.1
+    assert not _member(extra, out["gt"]).any()  # to remove: not in the target
+    assert same_events(out["gt"], plain["gt"])
+    assert "hot_pixels" not in base.to_dict() and cfg.to_dict()["hot_pixels"] == [3, 3]
+    with pytest.raises(ParameterError, match="hot_pixels must satisfy"):
+        SensingConfig(hot_pixels=(4, 2))

@@ -168,6 +168,7 @@ def _file_groups(recipe: Recipe) -> tuple[str, ...] | None:
     """Without ``components`` a file keeps its pair (and ``gt_full``) only."""
     return None if recipe.config.components else ("input", "gt", "gt_full")
 
+
 _FLARE7K: dict[str, list[str]] = {}
 
 

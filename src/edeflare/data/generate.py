@@ -157,7 +157,6 @@ GROUPS = tuple(g for g in FILE_GROUPS if g != "gt_full")
 """The streams of every generated sequence (sparse sensing adds ``gt_full``)."""
 
 
-
 def generate_sequence(
     recipe: Recipe, index: int, *, source: BackgroundSource | None = None
 ) -> SequenceData:

@@ -373,7 +373,9 @@ for _recipe in (
         test_sequences=12,
         sensor_size=(346, 260),
         scene=_NIGHT_SCENE,
-        config=FlareConfig(script=_NIGHT_SCRIPT, sensing=SensingConfig(enabled=True)),
+        config=FlareConfig(
+            script=_NIGHT_SCRIPT, sensing=SensingConfig(enabled=True, hot_pixels=(0, 8))
+        ),
     ),
 ):
     RECIPES.register(_recipe.name, _recipe)
@@ -386,7 +388,8 @@ DSEC-Flare windows (15 of 100 ms at 640x480 by default) cut from a local DSEC co
 (``recipe.replace(dsec=DsecFlareConfig(root=...))``), without ground truth; and
 ``eflare-night`` (180 of 100 ms at 346x260), the simulator calibrated on real night
 recordings: weaker scattered light, travelling lights of 3-28 px, and the sparse-sensing stage
-(:mod:`edeflare.sim.sensing`), whose ``gt`` is a keep-only target."""
+(:mod:`edeflare.sim.sensing`, with up to 8 hot pixels to remove), whose ``gt`` is a keep-only
+target."""
 
 
 def list_recipes() -> list[str]:

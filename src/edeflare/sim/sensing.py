@@ -26,6 +26,12 @@ measured statistics on a simulated pair, per sequence:
    log-uniform in ``noise_rate`` (events per pixel per second) join the input
    and the target: real scenes hold scattered events far from any light (noise,
    flicker on texture), which a de-flarer must not learn to delete.
+5. **Hot pixels to remove** (off unless ``hot_pixels`` is above ``(0, 0)``): a
+   number of pixels uniform in ``hot_pixels`` each fire at a rate log-uniform in
+   ``hot_rate`` (events per second), almost all of one polarity (ON for three in
+   four pixels), as the Prophesee Gen3 recording's seven hot pixels do (5-66 k
+   events/s, all ON). They join the input, not the target: a sensor defect, which
+   every denoiser removes and which the real recordings' halos sweep over.
 
 The target ``gt`` becomes *keep-only*: the input's events that are true (scene,
 source, glow, background activity), a subset of the input, which is what a
@@ -79,10 +85,24 @@ class SensingConfig:
     falloff: float = 2.0
     noise_rate: tuple[float, float] = (0.3, 20.0)
     step_us: int = 10_000
+    hot_pixels: tuple[int, int] = (0, 0)
+    hot_rate: tuple[float, float] = (1_000.0, 50_000.0)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "survival", tuple(float(v) for v in self.survival))
         object.__setattr__(self, "noise_rate", tuple(float(v) for v in self.noise_rate))
+        object.__setattr__(self, "hot_rate", tuple(float(v) for v in self.hot_rate))
+        try:
+            lo, hi = (int(v) for v in self.hot_pixels)
+        except (TypeError, ValueError):
+            msg = f"hot_pixels must be (low, high), got {self.hot_pixels!r}"
+            raise ParameterError(msg) from None
+        if not 0 <= lo <= hi:
+            raise ParameterError(f"hot_pixels must satisfy 0 <= low <= high, got {(lo, hi)}")
+        object.__setattr__(self, "hot_pixels", (lo, hi))
+        lo_r, hi_r = self.hot_rate
+        if not (0 < lo_r <= hi_r and math.isfinite(hi_r)):
+            raise ParameterError(f"hot_rate must satisfy 0 < low <= high, got {self.hot_rate}")
         lo, hi = self.survival
         if not 0 < lo <= hi <= 1:
             raise ParameterError(f"survival must satisfy 0 < low <= high <= 1, got {self.survival}")
@@ -108,10 +128,12 @@ class SensingConfig:
         return cls(**dict(data))
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict."""
-        return {
-            k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()
-        }
+        """A JSON-ready dict (without the hot-pixel keys while that step is off, so
+        recipes keep the dicts and digests they had before it existed)."""
+        d = {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+        if self.hot_pixels == (0, 0):
+            del d["hot_pixels"], d["hot_rate"]
+        return d
 
 
 def _keys(ev: np.ndarray, size: SensorSize) -> np.ndarray:
@@ -122,6 +144,28 @@ def _keys(ev: np.ndarray, size: SensorSize) -> np.ndarray:
 
 def _log_uniform(gen: np.random.Generator, lo: float, hi: float) -> float:
     return float(np.exp(gen.uniform(np.log(lo), np.log(hi)))) if hi > lo else float(lo)
+
+
+def _hot_pixel_events(
+    gen: np.random.Generator, config: SensingConfig, size: SensorSize, t0: int, t1: int
+) -> np.ndarray:
+    """Step 5: the hot pixels' events (none, and no draws, while the step is off)."""
+    lo, hi = config.hot_pixels
+    if hi == 0:
+        return np.empty(0, dtype=EVENT_DTYPE)
+    width, height = size
+    n_pixels = int(gen.integers(lo, hi + 1))
+    parts = []
+    for _ in range(n_pixels):
+        rate = _log_uniform(gen, *config.hot_rate)
+        n = int(gen.poisson(rate * max(t1 - t0, 0) / 1e6))
+        ev = np.empty(n, dtype=EVENT_DTYPE)
+        ev["t"] = np.sort(gen.integers(t0, max(t1, t0 + 1), n))
+        ev["x"], ev["y"] = gen.integers(0, width), gen.integers(0, height)
+        polarity = int(gen.random() < 0.75)
+        ev["p"] = np.where(gen.random(n) < 0.97, polarity, 1 - polarity)
+        parts.append(ev)
+    return np.concatenate(parts) if parts else np.empty(0, dtype=EVENT_DTYPE)
 
 
 def sparse_sensing(
@@ -199,7 +243,8 @@ def sparse_sensing(
     noise["x"] = gen.integers(0, width, n_noise)
     noise["y"] = gen.integers(0, height, n_noise)
     noise["p"] = gen.integers(0, 2, n_noise)
-    new_input = np.concatenate([kept, restored, noise])
+    hot = _hot_pixel_events(gen, config, size, int(t_start_us), t_end)
+    new_input = np.concatenate([kept, restored, noise, hot])
     new_input = new_input[np.argsort(new_input["t"], kind="stable")]
     true = np.concatenate([streams["gt"], light, inp[is_flare & near], noise])
     target = new_input[np.isin(_keys(new_input, size), _keys(true, size))]
