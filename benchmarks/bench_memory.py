@@ -26,7 +26,9 @@ from pathlib import Path
 import numpy as np
 from _common import PEAK_MIB, random_events, report
 
-_CHILD = PEAK_MIB + r"""
+_CHILD = (
+    PEAK_MIB
+    + r"""
 import json, sys, time
 args = json.loads(sys.argv[1])
 t0 = time.perf_counter()
@@ -40,6 +42,7 @@ else:
 print(json.dumps({"code": code, "seconds": time.perf_counter() - t0,
                   "peak_mib": peak_mib()}))
 """
+)
 
 FORMATS = (".h5", ".npz", ".raw", ".aedat4", ".es", ".dat", ".csv")
 

@@ -15,9 +15,11 @@ in a fresh subprocess (model loading included), and reports
 The mask presets also run through ONNX Runtime (``--runtime onnx``: the
 network exported in memory at start-up).
 
-The reference in the same run is the default bundled model (``unet2d.lite``
-on full-resolution voxel grids): the ``speedup`` column is its time over each
-row's, at the same case. ``mask.lite`` runs the bundled ``night`` weights. The
+The reference in the same run is the previous default bundled model (``eflare``,
+a ``unet2d.lite`` on full-resolution voxel grids): the ``speedup`` column is its
+time over each row's, at the same case. ``mask.pixel`` runs the bundled default
+``night`` weights; ``mask.fast`` (the fast preset, no per-pixel refinement) and
+``mask.lite`` run untrained weights of the same speed. The
 baselines are timed on the same files: ``raw`` (only reading and writing: the
 I/O floor), EFR, PFD-A, PFD-B, and dv-processing's FastDecay where installed.
 
@@ -35,7 +37,9 @@ from pathlib import Path
 
 from _common import PEAK_MIB, random_events, report
 
-_CHILD = PEAK_MIB + r"""
+_CHILD = (
+    PEAK_MIB
+    + r"""
 import json, sys, time
 t0 = time.perf_counter()
 from edeflare.deflare import create_method, deflare_file
@@ -46,6 +50,7 @@ print(json.dumps({"total_s": time.perf_counter() - t0, "seconds": stats.seconds,
                   "span_s": stats.span_us / 1e6, "latency_ms": stats.latency_ms,
                   "peak_rss_mib": peak_mib()}))
 """
+)
 
 
 def _run(code: str, *args: str) -> dict[str, float]:
@@ -61,7 +66,7 @@ def _weights(tmp: Path, preset: str) -> str:
     from edeflare.models.infer import bundled_weights
     from edeflare.models.weights import ModelCard, load_model, save_model
 
-    for name in ("default", "night", "fast", "previous"):
+    for name in ("night", "eflare"):
         try:
             path = bundled_weights(name)
         except Exception:
@@ -92,13 +97,14 @@ def main() -> None:
     rows: list[dict[str, object]] = []
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
-        models = {p: _weights(tmp, p) for p in ("unet2d.lite", "mask.lite", "mask.fast")}
+        presets = ("unet2d.lite", "mask.pixel", "mask.fast", "mask.lite")
+        models = {p: _weights(tmp, p) for p in presets}
         methods: list[tuple[str, str, dict[str, str]]] = [
             (f"model {p}", "model", {"weights": w}) for p, w in models.items()
         ]
         methods += [
             (f"model {p} (onnx)", "model", {"weights": models[p], "runtime": "onnx"})
-            for p in ("mask.lite", "mask.fast")
+            for p in ("mask.pixel", "mask.fast")
         ]
         methods += [(m, m, {}) for m in ("raw", "efr", "pfd-a", "pfd-b", "dv-fastdecay")]
         for size, rate in cases:

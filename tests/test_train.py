@@ -132,6 +132,54 @@ def test_keep_loss_needs_a_mask_preset_and_losses_are_checked(dataset, tmp_path)
         train(bad, _paths(dataset, "train"), tmp_path / "c", progress=False)
 
 
+def test_init_starts_a_larger_preset_from_smaller_weights(dataset, tmp_path):
+    from safetensors.torch import load_file
+
+    from edeflare.models.weights import WeightsError
+
+    fast = train(
+        _config(preset="mask.fast", loss="keep", iterations=4, val_every=1000),
+        _paths(dataset, "train"),
+        tmp_path / "fast",
+        progress=False,
+    )
+    # lr 0: the run's model is what it started from
+    cfg = _config(preset="mask.pixel", loss="keep", iterations=2, val_every=1000, lr=0.0)
+    final = train(
+        dataclasses.replace(cfg, init=str(fast)),
+        _paths(dataset, "train"),
+        tmp_path / "pixel",
+        progress=False,
+    )
+    before, after = load_file(str(fast)), load_file(str(final))
+    assert set(after) - set(before) == {
+        "pixel_gain", "pixel_in.bias", "pixel_in.weight", "pixel_out.bias", "pixel_out.weight"
+    }  # fmt: skip
+    assert all(torch.equal(before[k], after[k]) for k in before)
+    assert not after["pixel_out.weight"].any()  # the new layers start fresh: the identity
+    # freeze_init: only the new layers learn
+    frozen = train(
+        dataclasses.replace(cfg, init=str(fast), freeze_init=True, lr=3e-3, iterations=3),
+        _paths(dataset, "train"),
+        tmp_path / "frozen",
+        progress=False,
+    )
+    tuned = load_file(str(frozen))
+    assert all(torch.equal(before[k], tuned[k]) for k in before)
+    assert tuned["pixel_out.weight"].any()
+    with pytest.raises(EdeflareError, match="freeze_init needs init"):
+        train(dataclasses.replace(cfg, freeze_init=True), _paths(dataset, "train"),
+              tmp_path / "x", progress=False)  # fmt: skip
+    lite = train(_config(iterations=1), _paths(dataset, "train"), tmp_path / "lite", progress=False)
+    with pytest.raises(WeightsError, match="cannot start FlareMaskNet from these weights"):
+        train(
+            dataclasses.replace(cfg, init=str(lite)),
+            _paths(dataset, "train"),
+            tmp_path / "bad",
+            progress=False,
+        )
+
+
 def test_resume_is_exact_and_logs_are_not_duplicated(dataset, tmp_path):
     cfg = _config()
     straight = train(cfg, _paths(dataset, "train"), tmp_path / "a", progress=False)

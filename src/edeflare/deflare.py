@@ -390,7 +390,7 @@ class ModelParams:
             metavar="PATH",
             type=Path,
             convert=str,
-            default_text="the bundled model",
+            default_text="the bundled night model; 'eflare' names the other one",
         ),
     )
     decoder: str = dataclasses.field(
@@ -556,8 +556,10 @@ class PFDMethod(Method):
 class ModelMethod(Method):
     """A trained E-DeflareNet (see :class:`~edeflare.models.infer.ModelDeflarer`).
 
-    ``weights=None`` takes the model bundled with the package, a name without a suffix
-    another bundled one (``"night"``: ``assets/night.safetensors``). Windows are the
+    ``weights=None`` takes the package's default model
+    (:data:`~edeflare.models.infer.DEFAULT_MODEL`, ``"night"``), a name without a
+    suffix a bundled one (``"eflare"``: ``assets/eflare.safetensors``, the
+    voxel-to-voxel model of the uncalibrated simulator). Windows are the
     model's own (its card's ``window_us``, 20 ms) and are batched
     ``batch_windows`` at a time; decoding is seeded by ``(seed, window start)``.
     """

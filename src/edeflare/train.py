@@ -25,6 +25,7 @@ import io
 import json
 import math
 import os
+import sys
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -44,7 +45,8 @@ from .errors import EdeflareError
 from .io._atomic import atomic_path
 from .models import create_model, get_preset
 from .models.flaremask import FlareMaskNet, keep_loss
-from .models.weights import ModelCard, save_model
+from .models.infer import resolve_weights
+from .models.weights import ModelCard, init_from, save_model
 
 __all__ = ["LOSSES", "TRAIN_PRESETS", "TrainConfig", "train"]
 
@@ -85,6 +87,8 @@ class TrainConfig:
     data: str = ""  # description of the training data, for the model card
     loss: str = "mse"  # "mse" of the voxel grids, or "keep": per-event decisions (mask presets)
     keep_weight: float = 0.5  # loss "keep": the share of the loss on the events to keep
+    init: str | None = None  # weights to start from (a path or a bundled name): fine-tuning
+    freeze_init: bool = False  # with init: train only the layers the preset adds to it
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
@@ -404,7 +408,23 @@ def train(
         )
     epoch_len = len(train_set) // global_batch
     model = create_model(config.preset).to(device)
-    opt = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    if config.freeze_init and config.init is None:
+        raise EdeflareError("freeze_init needs init (the weights to start from and keep)")
+    if config.init is not None:
+        # a resumed run loads its checkpoint below; the init only says which layers are new
+        fresh = init_from(model, resolve_weights(config.init))
+        if env.main and fresh and not (out / "checkpoint.pt").exists():
+            print(f"started from {config.init}; new: {', '.join(fresh)}", file=sys.stderr)
+        if config.freeze_init:
+            if not fresh:
+                raise EdeflareError(
+                    f"freeze_init: {config.init} holds every layer of {config.preset}; "
+                    "nothing would be trained"
+                )
+            for name, param in model.named_parameters():
+                param.requires_grad_(name in fresh)
+    trained = [p for p in model.parameters() if p.requires_grad]
+    opt = torch.optim.Adam(trained, lr=config.lr, weight_decay=config.weight_decay)
     ckpt_path = out / "checkpoint.pt"
     start = 0
     best, elapsed = math.inf, 0.0

@@ -1,4 +1,4 @@
-"""The bundled night model: its card, and what it does to the annotated real recordings."""
+"""The bundled default model, night: its card, and what it does to the annotated real recordings."""
 
 from __future__ import annotations
 
@@ -8,36 +8,41 @@ from conftest import real_data_dir
 from edeflare.deflare import deflare
 from edeflare.eval.score import bundled_lights, load_lights, score_events
 from edeflare.io import read_events
-from edeflare.models.infer import bundled_weights
+from edeflare.models.infer import DEFAULT_MODEL, bundled_weights
 from edeflare.models.weights import read_card
 
 
-def test_the_night_card_says_what_it_is():
+def test_the_night_card_says_what_it_is_and_night_is_the_default():
     card = read_card(bundled_weights("night"))
-    assert card.preset == "mask.fast" and card.keep_threshold == 0.7
-    assert "--loss keep" in card.command and "thin.py" in card.data
-    assert card.metrics["score_davis_lamps_combined"] == 0.739
+    assert DEFAULT_MODEL == "night" and bundled_weights() == bundled_weights("night")
+    assert card.preset == "mask.pixel" and card.keep_threshold == 0.5  # the training default
+    assert "--loss keep" in card.command and "--freeze-init" in card.command
+    assert "--recipe eflare-night" in card.data
+    assert card.metrics["score_davis_lamps_combined"] == 0.717
+    assert read_card(bundled_weights("eflare")).preset == "unet2d.lite"  # the previous default
 
 
 @pytest.mark.parametrize(
     ("name", "min_removed", "min_light", "min_combined"),
     [
-        ("prophesee_gen3_rotating_light.raw", 0.40, 0.86, 0.55),  # docs: 42.8 %, 88.9 %, 0.578
-        ("davis346_flicker_lamps.aedat4", 0.68, 0.89, 0.71),  # docs: 71.9 %, 91.5 %, 0.739
+        ("prophesee_gen3_rotating_light.raw", 0.60, 0.90, 0.72),  # docs: 62.5 %, 92.3 %, 0.745
+        ("davis346_flicker_lamps.aedat4", 0.61, 0.89, 0.69),  # docs: 64.1 %, 91.9 %, 0.717
     ],
 )
-def test_night_removes_flare_around_real_lights_and_keeps_them(
+def test_the_default_removes_flare_around_real_lights_and_keeps_them(
     name, min_removed, min_light, min_combined
 ):
     rec = read_events(real_data_dir() / name)
-    out = deflare(rec.events, rec.sensor_size, "model", weights="night")
     lights = load_lights(bundled_lights(name), rec.sensor_size)
-    night, default = score_events(
-        rec.events,
-        {"night": out, "default": deflare(rec.events, rec.sensor_size, "model")},
-        lights,
-        rec.sensor_size,
-    )
-    assert night.flare_removed >= min_removed and night.light_kept >= min_light
-    assert night.combined >= min_combined
-    assert night.combined > 4 * default.combined  # the default erodes the light, keeps flare
+    outputs = {
+        "default": deflare(rec.events, rec.sensor_size, "model"),
+        "eflare": deflare(rec.events, rec.sensor_size, "model", weights="eflare"),
+        # the filters users already run (the dv extra, part of the test extra)
+        "dv-fastdecay": deflare(rec.events, rec.sensor_size, "dv-fastdecay"),
+        "dv-bafilter": deflare(rec.events, rec.sensor_size, "dv-bafilter"),
+    }
+    default, eflare, *filters = score_events(rec.events, outputs, lights, rec.sensor_size)
+    assert default.flare_removed >= min_removed and default.light_kept >= min_light
+    assert default.combined >= min_combined
+    assert default.combined > 4 * eflare.combined  # the previous default erodes the light
+    assert all(default.combined > f.combined for f in filters)

@@ -53,18 +53,23 @@ def test_mask_model_export_matches_torch_on_real_windows(mask_weights, tmp_path)
     assert parity.decisions_differing <= parity.decisions // 10_000
 
 
-def test_bundled_model_export_matches_torch_on_a_real_window(tmp_path):
+def test_bundled_voxel_model_export_matches_torch_on_a_real_window(tmp_path):
     src = open_events(real_data_dir() / GEN3)
-    onnx_path = tmp_path / "default.onnx"
-    export_onnx(bundled_weights(), onnx_path, src.sensor_size)
-    parity = onnx_parity(bundled_weights(), onnx_path, islice(src.windows(20_000), 1), (640, 480))
+    onnx_path = tmp_path / "eflare.onnx"
+    weights = bundled_weights("eflare")
+    export_onnx(weights, onnx_path, src.sensor_size)
+    parity = onnx_parity(weights, onnx_path, islice(src.windows(20_000), 1), (640, 480))
     assert parity.unit == "cell" and parity.decisions == 8 * 640 * 480
     # float32 sums in another order: relative error ~1e-4, a handful of cells round differently
     assert parity.max_abs_diff <= 1e-3 * parity.max_abs_value
     assert parity.decisions_differing <= parity.decisions // 10_000
 
 
-def test_deflare_runs_an_exported_file_and_the_onnx_runtime_on_weights(mask_weights, tmp_path, rng):
+@pytest.mark.parametrize("preset", ["mask.lite", "mask.pixel"])
+def test_deflare_runs_an_exported_file_and_the_onnx_runtime_on_weights(preset, tmp_path, rng):
+    # mask.pixel: its per-pixel refinement travels in the ONNX metadata and runs per event
+    mask_weights = tmp_path / "mask.safetensors"
+    save_model(mask_weights, _trained_like(preset), ModelCard(preset=preset, seed=7))
     size = (96, 64)
     events = random_events(rng, 20_000, size, t0=0, span_us=100_000)
     events = np.concatenate([events, random_events(rng, 20_000, (8, 8), t0=0, span_us=100_000)])
@@ -83,6 +88,8 @@ def test_deflare_runs_an_exported_file_and_the_onnx_runtime_on_weights(mask_weig
     assert 0 < outputs["torch"].size < events.size  # the model does drop events
     assert same_events(outputs["onnx-file"], outputs["torch"])
     assert same_events(outputs["onnx-weights"], outputs["torch"])
+    if preset == "mask.pixel":
+        assert OnnxNetwork(tmp_path / "m.onnx").pixel_params is not None
 
 
 def test_exported_file_refuses_another_sensor_size(mask_weights, tmp_path):

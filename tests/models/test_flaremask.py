@@ -79,3 +79,51 @@ def test_keep_threshold_moves_the_decision_and_lower_keeps_a_superset(tmp_path):
         kept[threshold] = {tuple(e) for e in d(events, (64, 48), 0).tolist()}
     assert kept[None] == kept[0.3]  # the card's threshold is the default
     assert kept[0.6] < kept[0.3] < kept[0.1]  # strict supersets as the threshold falls
+
+
+def _pixel_net(seed: int = 0) -> FlareMaskNet:
+    """A ``mask.pixel`` with random weights everywhere (its zero-initialised output too)."""
+    torch.manual_seed(seed)
+    net = create_model("mask.pixel").eval()
+    with torch.no_grad():
+        for p in net.parameters():
+            p.add_(0.3 * torch.randn_like(p))
+    return net
+
+
+def test_pixel_refinement_starts_as_the_identity_and_its_event_path_equals_the_dense_one():
+    size = (70, 50)
+    rng = np.random.default_rng(1)
+    n = 3000
+    x, y = rng.integers(0, size[0], n), rng.integers(0, size[1], n)
+    # many events per pixel, one polarity per pixel (no ON/OFF cancellation in the grid)
+    ev = make_events(np.sort(rng.integers(0, 20_000, n)), x, y, (7 * x + 3 * y) % 2)
+    grid = torch.from_numpy(encode(ev, size, 0, 20_000, 8))[None, None].float()
+    assert torch.equal(create_model("mask.pixel")(grid), grid)  # identity at initialisation
+    net = _pixel_net()
+    with torch.no_grad():
+        full = net.pixel_logits(grid)[0].numpy()
+        coarse = net.logits(torch.from_numpy(event_features(ev, size, 0, 20_000, 8, 8))[None])
+    channel = ev["t"] * 8 // 20_000 + 8 * (1 - ev["p"].astype(np.int64))
+    dense = full[channel, ev["y"], ev["x"]]
+    params = net.pixel_params()
+    for threshold in (0.3, 0.5, 0.7):
+        keep = event_keep_mask(
+            coarse[0].numpy(), ev, 0, 20_000, 8, threshold, pixel_params=params, sensor_size=size
+        )
+        assert 0.05 < keep.mean() < 0.95  # a real mask
+        np.testing.assert_array_equal(keep, dense > np.log(threshold / (1 - threshold)) - np.log(3))
+    with pytest.raises(ValueError, match="needs the sensor size"):
+        event_keep_mask(coarse[0].numpy(), ev, 0, 20_000, 8, pixel_params=params)
+
+
+def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():
+    from edeflare.models.flaremask import event_pixel_features
+
+    # a hot pixel at (5, 5): 4 ON events; one OFF there; a lone ON at (6, 5); one at (8, 5)
+    ev = make_events([0, 1, 2, 3, 4, 5, 6], [5, 5, 5, 5, 5, 6, 8], [5] * 7, [1, 1, 1, 1, 0, 1, 1])
+    f = np.expm1(event_pixel_features(ev, (12, 10))).round().astype(int)
+    assert f[0].tolist() == [4, 1, 1, 0]  # own 4 ON, other 1 OFF, (6, 5) beside; (8, 5) 3 away
+    assert f[4].tolist() == [1, 4, 1, 0]
+    assert f[5].tolist() == [1, 0, 5, 1]  # the 5 events of (5, 5) beside; (8, 5) 2 away: the ring
+    assert f[6].tolist() == [1, 0, 0, 1]  # (6, 5) in its ring; (5, 5) 3 away: outside

@@ -23,8 +23,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "--model",
         type=Path,
         metavar="PATH",
-        help="weights (.safetensors) or the name of a bundled model (night); default: the "
-        "default bundled model",
+        help="weights (.safetensors) or the name of a bundled model (night, eflare); default: "
+        "the default bundled model (night)",
     )
     p.add_argument(
         "--sensor-size",

@@ -69,6 +69,19 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="encode every training window once and keep the grids in memory",
     )
     p.add_argument("--device", help="auto, cpu, cuda, cuda:1 ...")
+    p.add_argument(
+        "--init",
+        metavar="WEIGHTS",
+        help="start from these weights (.safetensors or a bundled model's name, e.g. night): "
+        "fine-tuning; layers the preset adds start fresh",
+    )
+    p.add_argument(
+        "--freeze-init",
+        action="store_true",
+        default=None,
+        help="with --init: train only the layers the preset adds (e.g. mask.pixel's "
+        "refinement on mask.fast weights)",
+    )
     p.set_defaults(func=run)
 
 

@@ -9,6 +9,7 @@ name                architecture                                 parameters
 ``unet2d.tiny``     residual 2D U-Net, bins as channels, 8/16/32      ~37 k
 ``mask.lite``       flare mask on 4x4-pixel cells, 8/16/32/64        150,096
 ``mask.fast``       flare mask on 8x8-pixel cells, 8/16/32/64        150,096
+``mask.pixel``      ``mask.fast`` + per-pixel refinement (8 wide)    150,153
 ==================  ===========================================  ==========
 
 The ``mask`` presets (:mod:`edeflare.models.flaremask`) estimate a keep
@@ -123,5 +124,13 @@ register_model(
         FlareMaskNet,
         {"bins": 8, "scale": 8, "features": (8, 16, 32, 64), "groups": 4},
         "flare mask on 8x8-pixel cells, for embedded use",
+    )
+)
+register_model(
+    ModelPreset(
+        "mask.pixel",
+        FlareMaskNet,
+        {"bins": 8, "scale": 8, "features": (8, 16, 32, 64), "groups": 4, "pixel_hidden": 8},
+        "mask.fast and a per-pixel refinement (a lone event or a hot pixel beside a light)",
     )
 )

@@ -71,6 +71,7 @@ DEFAULT_OPSET = 17
 
 _CARD_KEY = "edeflare_card"
 _GRAPH_KEY = "edeflare_graph"
+_PIXEL_KEY = "edeflare_pixel_refinement"  # mask.pixel: the per-event refinement's weights
 _SIZE_KEY = "edeflare_sensor_size"
 
 
@@ -128,11 +129,15 @@ def onnx_bytes(
             dynamo=False,
         )
     proto = onnx.load_from_string(buffer.getvalue())
-    for key, value in (
+    meta = [
         (_CARD_KEY, json.dumps(card.to_dict())),
         (_GRAPH_KEY, graph),
         (_SIZE_KEY, json.dumps(list(size))),
-    ):
+    ]
+    params = model.pixel_params() if isinstance(model, FlareMaskNet) else None
+    if params is not None:  # applied per event after the graph (flaremask.event_keep_mask)
+        meta.append((_PIXEL_KEY, json.dumps({k: v.tolist() for k, v in params.items()})))
+    for key, value in meta:
         entry = proto.metadata_props.add()
         entry.key, entry.value = key, value
     proto.producer_name = "edeflare"
@@ -228,6 +233,7 @@ class OnnxNetwork:
         except Exception as exc:  # onnxruntime raises its own Fail/InvalidGraph classes
             raise WeightsError(f"{source}: not a loadable ONNX model ({exc})") from None
         self.card, self.graph, self.sensor_size = _metadata(self.session, source)
+        self.pixel_params = _pixel_params(self.session, source)
         self.input_name = self.session.get_inputs()[0].name
         self._shape = tuple(self.session.get_inputs()[0].shape[1:])
         self.source = source
@@ -255,6 +261,17 @@ class OnnxNetwork:
                 f"{self._shape}"
             )
         return self.session.run(None, {self.input_name: x})[0]
+
+
+def _pixel_params(session: Any, source: str) -> dict[str, np.ndarray] | None:
+    """The per-pixel refinement's weights stored beside the graph (None: it has none)."""
+    text = session.get_modelmeta().custom_metadata_map.get(_PIXEL_KEY)
+    if text is None:
+        return None
+    try:
+        return {k: np.asarray(v, dtype=np.float64) for k, v in json.loads(text).items()}
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise WeightsError(f"{source}: unreadable pixel refinement metadata ({exc})") from None
 
 
 def read_onnx_card(path: str | os.PathLike[str]) -> ModelCard:
@@ -328,8 +345,19 @@ def onnx_parity(
         worst = max(worst, float(np.max(np.abs(y0 - y1))))
         largest = max(largest, float(np.max(np.abs(y0))))
         if mask:
-            k0 = event_keep_mask(y0, events, start, torch_run.window_us, scale)
-            k1 = event_keep_mask(y1, events, start, torch_run.window_us, scale)
+            k0, k1 = (
+                event_keep_mask(
+                    y,
+                    events,
+                    start,
+                    torch_run.window_us,
+                    scale,
+                    run.keep_threshold,
+                    pixel_params=run.pixel_params,
+                    sensor_size=sensor_size,
+                )
+                for y, run in ((y0, torch_run), (y1, onnx_run))
+            )
             differing += int(np.count_nonzero(k0 != k1))
             n_decisions += int(events.size)
         else:

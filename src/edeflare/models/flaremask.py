@@ -12,8 +12,16 @@ pixel, so :class:`FlareMaskNet` looks at the window through cells of
    (dense cores fill their cells, scattered flare does not);
 2. a residual 2-D U-Net (:class:`~edeflare.models.unet2d.ResidualUNet2d`'s
    blocks) maps them to one logit :math:`\ell` per cell, bin and polarity;
-3. the logits are upsampled bilinearly to the sensor's pixels and the keep
-   probability is :math:`m = \min(1, 2\,\sigma(\ell))`, exactly 1 at
+3. the logits are upsampled bilinearly to the sensor's pixels;
+4. optionally (``pixel_hidden > 0``, the ``mask.pixel`` preset) a per-pixel
+   refinement adds :math:`\delta = v^\top \mathrm{relu}(a\,\ell + W f + b) + c`
+   to each logit, where :math:`f` are the pixel's own features in the window
+   (:data:`PIXEL_FEATURES`: :math:`\log(1 + n)` of its events of the logit's
+   polarity and of the other, and of the events of its 3x3 and 5x5
+   neighbourhoods). The cell sees context; the pixel tells a dense light's edge
+   from a lone scattered event or a hot pixel in the same cell. :math:`v` and
+   :math:`c` start at zero;
+5. the keep probability is :math:`m = \min(1, 2\,\sigma(\ell))`, exactly 1 at
    initialisation (the identity, like every preset) and below 1 where the
    network learns flare.
 
@@ -33,10 +41,23 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 import torch.nn.functional as F
+from torch import nn
 
 from .unet2d import UNet2dLayers
 
-__all__ = ["FlareMaskNet", "event_features", "event_keep_mask", "keep_loss"]
+__all__ = [
+    "PIXEL_FEATURES",
+    "FlareMaskNet",
+    "event_features",
+    "event_keep_mask",
+    "event_pixel_features",
+    "keep_loss",
+]
+
+PIXEL_FEATURES = ("own polarity", "other polarity", "3x3 neighbours", "5x5 ring")
+r"""The per-pixel features of the refinement, each :math:`\log(1 + n)` of a count of
+the window's events: at the pixel in the logit's polarity, at the pixel in the other
+one, in the 8 pixels around it, and in the 16 around those."""
 
 
 class FlareMaskNet(UNet2dLayers):
@@ -52,6 +73,8 @@ class FlareMaskNet(UNet2dLayers):
         Channels of the U-Net's levels.
     groups : int
         Groups of the group norms.
+    pixel_hidden : int
+        Width of the per-pixel refinement (0: none).
 
     Examples
     --------
@@ -69,10 +92,18 @@ class FlareMaskNet(UNet2dLayers):
         scale: int = 4,
         features: Sequence[int] = (16, 32, 64, 128),
         groups: int = 8,
+        pixel_hidden: int = 0,
     ) -> None:
         super().__init__(2 * int(bins) + 1, 2 * int(bins), features, groups)
         self.bins = int(bins)
         self.scale = int(scale)
+        self.pixel_hidden = int(pixel_hidden)
+        if self.pixel_hidden > 0:
+            self.pixel_in = nn.Conv2d(len(PIXEL_FEATURES), self.pixel_hidden, 1)
+            self.pixel_gain = nn.Parameter(torch.full((self.pixel_hidden,), 0.1))
+            self.pixel_out = nn.Conv2d(self.pixel_hidden, 1, 1)
+            nn.init.zeros_(self.pixel_out.weight)
+            nn.init.zeros_(self.pixel_out.bias)
 
     def features(self, x: torch.Tensor) -> torch.Tensor:
         """Low-resolution features ``(N, 2 bins + 1, ceil(H / s), ceil(W / s))`` of voxel grids."""
@@ -96,12 +127,43 @@ class FlareMaskNet(UNet2dLayers):
 
         The low-resolution logits upsampled bilinearly onto the padded grid of
         whole cells, then cropped: pixel centres fall where
-        :func:`event_keep_mask` samples them.
+        :func:`event_keep_mask` samples them; then the per-pixel refinement,
+        if the net has one.
         """
         h, w = x.shape[3:]
         low = self.logits(self.features(x))
         full = F.interpolate(low, scale_factor=self.scale, mode="bilinear", align_corners=False)
-        return full[:, :, :h, :w]
+        full = full[:, :, :h, :w]
+        if self.pixel_hidden == 0:
+            return full
+        z = x[:, 0].float()
+        on, off = z.clamp(min=0).sum(1, keepdim=True), (-z).clamp(min=0).sum(1, keepdim=True)
+        total = on + off
+        box3 = F.avg_pool2d(total, 3, stride=1, padding=1, count_include_pad=True) * 9
+        box5 = F.avg_pool2d(total, 5, stride=1, padding=2, count_include_pad=True) * 25
+        ring = [box3 - total, box5 - box3]
+        b = self.bins
+        out = []
+        for own, other, part in ((on, off, full[:, :b]), (off, on, full[:, b:])):
+            f = torch.log1p(torch.cat([own, other, *ring], 1).clamp(min=0))
+            hidden = self.pixel_in(f)[:, None] + self.pixel_gain[:, None, None] * part[:, :, None]
+            delta = torch.einsum("nbkhw,k->nbhw", F.relu(hidden), self.pixel_out.weight[0, :, 0, 0])
+            out.append(part + delta + self.pixel_out.bias[0])
+        return torch.cat(out, 1)
+
+    def pixel_params(self) -> dict[str, np.ndarray] | None:
+        """The refinement's weights as float64 arrays (None without one), for
+        :func:`event_keep_mask`: ``w_in (hidden, 4)``, ``b_in``, ``gain``, ``w_out``, ``b_out``."""
+        if self.pixel_hidden == 0:
+            return None
+        with torch.no_grad():
+            return {
+                "w_in": self.pixel_in.weight[:, :, 0, 0].double().cpu().numpy(),
+                "b_in": self.pixel_in.bias.double().cpu().numpy(),
+                "gain": self.pixel_gain.double().cpu().numpy(),
+                "w_out": self.pixel_out.weight[0, :, 0, 0].double().cpu().numpy(),
+                "b_out": self.pixel_out.bias.double().cpu().numpy(),
+            }
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         keep = torch.clamp(2 * torch.sigmoid(self.pixel_logits(x)), max=1.0)
@@ -146,6 +208,43 @@ def event_features(
     return np.concatenate([np.log1p(counts), active]).astype(np.float32)
 
 
+def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarray:
+    """The refinement's :data:`PIXEL_FEATURES` at each event ``(n, 4)`` (float64).
+
+    Counts over the given events (one window), as :meth:`FlareMaskNet.pixel_logits`
+    counts them in the window's voxel grid.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([0, 1, 2], [1, 1, 2], [1, 1, 1], [1, 0, 1])
+    >>> np.expm1(event_pixel_features(ev, (6, 4))).round().tolist()
+    [[1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.0], [1.0, 0.0, 2.0, 0.0]]
+    """
+    width, height = sensor_size
+    pix = events["y"].astype(np.int64) * width + events["x"]
+    on_ev = events["p"] != 0
+    on = np.bincount(pix[on_ev], minlength=width * height).reshape(height, width)
+    off = np.bincount(pix[~on_ev], minlength=width * height).reshape(height, width)
+    total = (on + off).astype(np.int64)
+    # box sums by a summed-area table: exact integers, no float filter round-off
+    sat = np.zeros((height + 1, width + 1), np.int64)
+    sat[1:, 1:] = total.cumsum(0).cumsum(1)
+    x, y = events["x"].astype(np.int64), events["y"].astype(np.int64)
+
+    def box(r: int) -> np.ndarray:
+        x0, x1 = np.maximum(x - r, 0), np.minimum(x + r + 1, width)
+        y0, y1 = np.maximum(y - r, 0), np.minimum(y + r + 1, height)
+        return sat[y1, x1] - sat[y0, x1] - sat[y1, x0] + sat[y0, x0]
+
+    own_on, own_off = on.ravel()[pix], off.ravel()[pix]
+    own = np.where(on_ev, own_on, own_off)
+    other = np.where(on_ev, own_off, own_on)
+    b3, b5 = box(1), box(2)
+    feats = np.stack([own, other, b3 - own - other, b5 - b3], axis=1)
+    return np.log1p(feats.astype(np.float64))
+
+
 def event_keep_mask(
     logits: np.ndarray,
     events: np.ndarray,
@@ -153,11 +252,16 @@ def event_keep_mask(
     window_us: int,
     scale: int,
     threshold: float = 0.5,
+    *,
+    pixel_params: dict[str, np.ndarray] | None = None,
+    sensor_size: tuple[int, int] | None = None,
 ) -> np.ndarray:
     """Per-event keep decisions from low-resolution logits ``(2 bins, h, w)``.
 
     The logit of the event's own polarity and bin is interpolated bilinearly at
-    the event's pixel centre (as :meth:`FlareMaskNet.forward` upsamples it) and
+    the event's pixel centre (as :meth:`FlareMaskNet.forward` upsamples it),
+    refined with the event's pixel features where ``pixel_params``
+    (:meth:`FlareMaskNet.pixel_params`; needs ``sensor_size``) are given, and
     the event is kept where its keep probability :math:`\\sigma(\\ell + \\ln 3)`
     (:func:`keep_loss`'s) exceeds ``threshold``; at 1/2 that is
     :math:`\\min(1, 2\\sigma(\\ell)) > 1/2`, i.e. :math:`\\ell > -\\ln 3`. A lower
@@ -193,6 +297,13 @@ def event_keep_mask(
     )
     if not 0.0 < threshold < 1.0:
         raise ValueError(f"threshold must be in (0, 1), got {threshold}")
+    if pixel_params is not None:
+        if sensor_size is None:
+            raise ValueError("the per-pixel refinement needs the sensor size")
+        f = event_pixel_features(events, sensor_size)
+        hidden = f @ pixel_params["w_in"].T + pixel_params["b_in"]
+        hidden += v[:, None] * pixel_params["gain"]
+        v = v + np.maximum(hidden, 0.0) @ pixel_params["w_out"] + pixel_params["b_out"][0]
     return v > np.log(threshold / (1.0 - threshold)) - np.log(3.0)
 
 

@@ -38,16 +38,42 @@ from .export import OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_mask
 from .weights import ModelCard, load_model
 
-__all__ = ["DECODERS", "RUNTIMES", "ModelDeflarer", "bundled_weights", "resolve_weights"]
+__all__ = [
+    "DECODERS",
+    "DEFAULT_MODEL",
+    "RUNTIMES",
+    "ModelDeflarer",
+    "bundled_weights",
+    "resolve_weights",
+]
 
 DECODERS = ("keep", "paper")
 RUNTIMES = ("auto", "torch", "onnx")
 
+DEFAULT_MODEL = "night"
+"""The bundled model used when none is named (``"default"`` is another name for it).
+
+``night`` (a ``mask.fast`` trained on the simulator calibrated on real night
+recordings, ``assets/night.md``) removes the sparse flare real sensors record and
+keeps the light, in real time on a CPU. ``eflare`` (``assets/eflare.md``, the
+default until 2026-11-25) is the voxel-to-voxel ``unet2d.lite`` trained on the
+uncalibrated simulator: better on that simulator's own test sets, far worse on
+real recordings and 20 times slower.
+"""
+
 _ASSETS = Path(__file__).resolve().parent.parent / "assets"
 
 
-def bundled_weights(name: str = "default") -> Path:
-    """Path of a model shipped inside the package (``assets/<name>.safetensors``)."""
+def bundled_weights(name: str = DEFAULT_MODEL) -> Path:
+    """Path of a model shipped inside the package (``assets/<name>.safetensors``).
+
+    Examples
+    --------
+    >>> bundled_weights().name, bundled_weights("default").name, bundled_weights("eflare").name
+    ('night.safetensors', 'night.safetensors', 'eflare.safetensors')
+    """
+    if name == "default":
+        name = DEFAULT_MODEL
     path = _ASSETS / f"{name}.safetensors"
     if not path.is_file():
         shipped = sorted(p.stem for p in _ASSETS.glob("*.safetensors")) if _ASSETS.is_dir() else []
@@ -136,8 +162,15 @@ class ModelDeflarer:
             self._onnx[exported.sensor_size] = exported
             card = exported.card
             model = create_model(card.preset)  # the architecture only: its scale and bins
+            self.pixel_params = exported.pixel_params
+            if isinstance(model, FlareMaskNet) and model.pixel_hidden and not self.pixel_params:
+                raise EdeflareError(
+                    f"{weights}: a {card.preset} export without its pixel refinement; "
+                    "export it again with this version"
+                )
         else:
             model, card = load_model(weights, self.device)
+            self.pixel_params = model.pixel_params() if isinstance(model, FlareMaskNet) else None
         self.model: torch.nn.Module = model
         self.card: ModelCard = card
         self._exported_only = is_onnx
@@ -254,8 +287,18 @@ class ModelDeflarer:
             [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
         )
         logits = self._network(feats, sensor_size, True)
+        params = self.pixel_params
         for (start, events), lg in zip(batch, logits, strict=True):
-            keep = event_keep_mask(lg, events, start, w, scale, self.keep_threshold)
+            keep = event_keep_mask(
+                lg,
+                events,
+                start,
+                w,
+                scale,
+                self.keep_threshold,
+                pixel_params=params,
+                sensor_size=sensor_size,
+            )
             yield start, events[keep]
 
     def _run(

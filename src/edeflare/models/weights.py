@@ -127,6 +127,41 @@ def read_card(path: str | os.PathLike[str]) -> ModelCard:
         raise WeightsError(f"{path}: model card is not JSON ({exc})") from None
 
 
+def init_from(model: nn.Module, path: str | os.PathLike[str]) -> list[str]:
+    """Load the weights of ``path`` into ``model`` to fine-tune it; return the tensors left fresh.
+
+    Every tensor of the file must exist in ``model`` with the same shape; the
+    model may have more (layers a preset adds to the one the file was trained
+    as, e.g. ``mask.pixel``'s refinement on ``mask.fast``), which keep their
+    initial values and are returned by name.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.models import create_model
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "fast.safetensors"
+    >>> save_model(p, create_model("mask.fast"), ModelCard(preset="mask.fast"))
+    >>> init_from(create_model("mask.pixel"), p)
+    ['pixel_gain', 'pixel_in.bias', 'pixel_in.weight', 'pixel_out.bias', 'pixel_out.weight']
+    """
+    path = Path(path)
+    read_card(path)  # a safetensors file of edeflare's, not a pickle
+    try:
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise WeightsError(f"{path}: corrupt weights ({exc})") from None
+    expected = model.state_dict()
+    extra = sorted(set(tensors) - set(expected))
+    wrong = sorted(k for k in tensors if k in expected and tensors[k].shape != expected[k].shape)
+    if extra or wrong:
+        raise WeightsError(
+            f"{path}: cannot start {type(model).__name__} from these weights "
+            f"(unexpected {extra[:3]}, other shapes {wrong[:3]})"
+        )
+    model.load_state_dict(tensors, strict=False)
+    return sorted(set(expected) - set(tensors))
+
+
 def load_model(
     path: str | os.PathLike[str], device: str | torch.device = "cpu"
 ) -> tuple[nn.Module, ModelCard]:
