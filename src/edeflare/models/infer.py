@@ -156,6 +156,11 @@ class ModelDeflarer:
             raise EdeflareError(f"{weights}: an ONNX file runs with runtime 'onnx', not 'torch'")
         self.runtime = "onnx" if is_onnx or runtime == "onnx" else "torch"
         self.device = _device(device)
+        if self.device.type == "cpu":
+            # Sparse night windows drive many activations into denormal floats, which
+            # CPUs compute slowly: flushing them to zero (torch's process-wide switch)
+            # halves the mask network's time here and changes no decision.
+            torch.set_flush_denormal(True)
         self._onnx: dict[tuple[int, int], OnnxNetwork] = {}
         if is_onnx:
             exported = OnnxNetwork(weights, device=str(self.device))
