@@ -2,9 +2,10 @@
 
     python docs/figures/make_night_real.py docs/figures/night_real.png [--model W]
 
-Rows: three 10 ms windows of the Prophesee Gen3 rotating light, three 20 ms windows
-of the DAVIS346 lamps, and the 8.8 ms Gen4.1 daytime street (no bright light: what
-a de-flarer should leave alone). Columns: the input, the default model (or
+One picture per recording, ``night_real_<recording>.png`` beside OUT: three 10 ms
+windows of the Prophesee Gen3 rotating light, three 20 ms windows of the DAVIS346
+lamps, the 8.8 ms Gen4.1 daytime street (no bright light: what a de-flarer should
+leave alone), one row each. Columns: the input, the default model (or
 ``--model W``), the previous default (``eflare``), dv-processing's FastDecay and
 BackgroundActivity filters (the ``dv`` extra). ON red, OFF blue.
 """
@@ -13,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-
-import numpy as np
 
 from edeflare.deflare import deflare
 from edeflare.io import read_events
@@ -40,7 +39,6 @@ def main() -> None:
         "dv-fastdecay": ("dv-fastdecay", {}),
         "dv-bafilter": ("dv-bafilter", {}),
     }
-    cells, rows = [], []
     for name, window, count in RECORDINGS:
         rec = read_events(REAL / name)
         ev, size = rec.events, rec.sensor_size
@@ -49,22 +47,14 @@ def main() -> None:
             for label, spec in columns.items()
         }
         t0 = int(ev["t"][0])
+        cells, rows = [], []
         for k in range(count):
             a, b = t0 + k * window, t0 + (k + 1) * window
-            frames = [event_frame(e[(e["t"] >= a) & (e["t"] < b)], size) for e in outs.values()]
-            cells.append(frames)
-            rows.append(f"{name.split('_')[0]} {k * window // 1000}-{(k + 1) * window // 1000} ms")
-    height = max(im.shape[0] for row in cells for im in row)
-    width = max(im.shape[1] for row in cells for im in row)
-
-    def pad(im: np.ndarray) -> np.ndarray:
-        out = np.full((height, width, 3), 255, np.uint8)
-        out[: im.shape[0], : im.shape[1]] = im
-        return out
-
-    flat = [pad(im) for row in cells for im in row]
-    save_image(args.out, grid(flat, labels=list(columns), row_labels=rows, ncols=len(columns)))
-    print("wrote", args.out)
+            cells += [event_frame(e[(e["t"] >= a) & (e["t"] < b)], size) for e in outs.values()]
+            rows.append(f"{k * window // 1000}-{(k + 1) * window // 1000} ms")
+        path = args.out.with_name(f"{args.out.stem}_{Path(name).stem}.png")
+        save_image(path, grid(cells, labels=list(columns), row_labels=rows, ncols=len(columns)))
+        print("wrote", path)
 
 
 if __name__ == "__main__":

@@ -54,9 +54,9 @@ RUNTIMES = ("auto", "torch", "onnx")
 DEFAULT_MODEL = "night"
 """The bundled model used when none is named (``"default"`` is another name for it).
 
-``night`` (a ``mask.fast`` trained on the simulator calibrated on real night
+``night`` (a ``mask.pixel`` trained on the simulator calibrated on real night
 recordings, ``assets/night.md``) removes the sparse flare real sensors record and
-keeps the light, in real time on a CPU. ``eflare`` (``assets/eflare.md``, the
+keeps the light, on a CPU at about the speed of the sensor. ``eflare`` (``assets/eflare.md``, the
 default until 2026-11-25) is the voxel-to-voxel ``unet2d.lite`` trained on the
 uncalibrated simulator: better on that simulator's own test sets, far worse on
 real recordings and 20 times slower.
