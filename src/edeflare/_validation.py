@@ -35,6 +35,7 @@ __all__ = [
     "check_range",
     "dataclass_from_dict",
     "make_rng",
+    "nested_from_dicts",
 ]
 
 T = TypeVar("T")
@@ -140,6 +141,32 @@ def dataclass_from_dict(
         )
     kwargs = {k: (tuple(_tuples(v)) if isinstance(v, list) else v) for k, v in data.items()}
     return cls(**kwargs)
+
+
+def nested_from_dicts(
+    data: dict[str, Any], nested: Mapping[str, Any], what: str = "recipe"
+) -> dict[str, Any]:
+    """Turn the mappings at ``nested``'s keys into their config types (``from_dict``), in place.
+
+    An error of a nested config becomes a :class:`ParameterError` naming ``what`` and
+    the key; values that are not mappings (configs already) are left as they are.
+
+    Examples
+    --------
+    >>> from edeflare.sim.sensing import SensingConfig
+    >>> d = nested_from_dicts({"sensing": {"enabled": True}}, {"sensing": SensingConfig})
+    >>> d["sensing"].enabled, d["sensing"] == SensingConfig(enabled=True)
+    (True, True)
+    """
+    from .errors import EdeflareError
+
+    for key, config_type in nested.items():
+        if key in data and isinstance(data[key], Mapping):
+            try:
+                data[key] = config_type.from_dict(data[key])
+            except EdeflareError as exc:
+                raise ParameterError(f"{what} {key!r}: {exc}") from None
+    return data
 
 
 def _tuples(values: list[Any]) -> list[Any]:

@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import EdeflareError, ParameterError
+from .._validation import nested_from_dicts
+from ..errors import ParameterError
 from ..sim.background import Background, BackgroundSource
 from ..sim.pair import PAIR_VARIANTS, WEIGHTS, StageTimer, simulate_pair
 from ..sim.render import flare7k_names
@@ -118,14 +119,7 @@ class FlareConfig:
         unknown = sorted(set(data) - names)
         if unknown:
             raise ParameterError(f"unknown flare key(s) {unknown}; valid keys: {sorted(names)}")
-        d = dict(data)
-        for key, config_type in _NESTED.items():
-            if key in d and isinstance(d[key], Mapping):
-                try:
-                    d[key] = config_type.from_dict(d[key])
-                except EdeflareError as exc:
-                    raise ParameterError(f"recipe {key!r}: {exc}") from None
-        return cls(**d)
+        return cls(**nested_from_dicts(dict(data), _NESTED))
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (:meth:`from_dict` round-trips it).

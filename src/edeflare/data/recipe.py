@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from .._registry import Registry
+from .._validation import nested_from_dicts
 from ..errors import EdeflareError, ParameterError
 from ..events import check_sensor_size
 from ..sim.background import SceneConfig, relative_names
@@ -239,13 +240,7 @@ class Recipe:
                 raise ParameterError(
                     f"recipe key {key!r} applies to 'flare' recipes, not to a {kind_name!r} one"
                 )
-        d = {k: v for k, v in data.items() if k in common}
-        for key, config_type in _NESTED.items():
-            if key in d and isinstance(d[key], Mapping):
-                try:
-                    d[key] = config_type.from_dict(d[key])
-                except EdeflareError as exc:
-                    raise ParameterError(f"recipe {key!r}: {exc}") from None
+        d = nested_from_dicts({k: v for k, v in data.items() if k in common}, _NESTED)
         if kind.config_field is None:
             raw: Any = {k: v for k, v in data.items() if k in own}
         else:
