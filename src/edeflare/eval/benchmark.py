@@ -86,13 +86,13 @@ class BenchmarkResult:
         if not self.downstream:
             return ""
         lines = [
-            "| Stream | PSNR (dB)↑ | SSIM↑ | flare score↓ | windows |",
+            "| Stream | PSNR (dB)↑ | SSIM↑ | flare-region RMSE↓ | windows |",
             "|---|---|---|---|---|",
         ]
         for name, d in self.downstream.items():
             flare = d.get("flare", math.nan)
             lines.append(
-                f"| {name} | {d['psnr']:.2f} | {d['ssim']:.4f} | {flare:.3f} | {d['windows']} |"
+                f"| {name} | {d['psnr']:.2f} | {d['ssim']:.4f} | {flare:.4f} | {d['windows']} |"
             )
         return "\n".join(lines) + "\n"
 

@@ -187,14 +187,14 @@ def downstream_table_html(result: BenchmarkResult) -> str:
         return ""
     lines = [
         '<table id="downstream">',
-        "<thead><tr><th>Stream</th><th>PSNR (dB) ↑</th><th>SSIM ↑</th><th>flare score ↓</th>"
+        "<thead><tr><th>Stream</th><th>PSNR (dB) ↑</th><th>SSIM ↑</th><th>flare-region RMSE ↓</th>"
         "<th>windows</th></tr></thead>",
         "<tbody>",
     ]
     for name, d in result.downstream.items():
         lines.append(
             f"<tr><td>{_e(name)}</td><td>{_fmt(d['psnr'], 2)}</td>"
-            f"<td>{_fmt(d['ssim'], 4)}</td><td>{_fmt(d.get('flare', math.nan), 3)}</td>"
+            f"<td>{_fmt(d['ssim'], 4)}</td><td>{_fmt(d.get('flare', math.nan), 4)}</td>"
             f"<td>{int(d['windows'])}</td></tr>"
         )
     lines += ["</tbody>", "</table>"]
