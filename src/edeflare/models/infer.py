@@ -153,6 +153,16 @@ class ModelDeflarer:
         Mask models: an event is kept where its keep probability exceeds this
         (default: the model card's, 1/2 unless the card says otherwise). Lower
         keeps more of the scene and of the flare.
+
+    Attributes
+    ----------
+    pixel_params : dict or None
+        The per-pixel refinement's weights of a ``mask.pixel`` model
+        (:meth:`~edeflare.models.flaremask.FlareMaskNet.pixel_params`; from the
+        ONNX metadata for an ``.onnx`` file), applied per event after the network.
+
+    On CPU a mask network runs on one thread (see ``_torch_threads``): it is small,
+    and the per-event work between its calls uses the other cores.
     """
 
     def __init__(
