@@ -30,8 +30,9 @@ the input gated by :math:`m`: :math:`\max(v, 0)\,m_{on} - \max(-v, 0)\,m_{off}`.
 For de-flaring, :func:`event_keep_mask` makes the decision per event at full
 resolution instead (keep where :math:`m > 1/2` at the event's own pixel, bin
 and polarity) from low-resolution features computed straight from the events:
-no full-resolution grid is ever built, which is what makes the model fast
-(``benchmarks/bench_models.py``).
+no full-resolution voxel grid is ever built, which is what makes the model fast
+(``benchmarks/bench_models.py``); the refinement adds one full-resolution count of
+the window's events per pixel (:func:`event_pixel_features`).
 """
 
 from __future__ import annotations
