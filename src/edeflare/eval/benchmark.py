@@ -33,8 +33,8 @@ from ..errors import ParameterError
 from ..events import SensorSize, empty_events, iter_chunk_windows
 from ..io import open_events
 from ..io.sequence import list_sequences, read_frames, sequence_span
-from ..recon.clips import BURN_IN, centre_image, intensity_to_image
-from .downstream import DownstreamScores
+from ..recon.clips import BURN_IN, centre_image
+from .downstream import CleanFrame, DownstreamScores
 from .evaluate import Evaluation, Summary, combine_summaries, summarize
 from .metrics import SegmentMetrics, segment_metrics
 from .tables import ResultsTable
@@ -218,7 +218,7 @@ def benchmark(
         size, start, end = span
         windows += -(-(end - start) // window_us)
         stream_us += end - start
-        frames = read_frames(path) if recon is not None else None
+        frames = _clean_frames(path) if recon is not None else None
         in_sample = frames is not None and not sample  # the first sequence with frames
         if frames is not None:  # read only with a reconstructor
             keep_gt = sample.setdefault(GROUND_TRUTH, []) if in_sample else None
@@ -226,7 +226,7 @@ def benchmark(
                 recon, path, size, start, end, window_us, frames, scores[GROUND_TRUTH], keep_gt
             )
             if in_sample:
-                sample["clean"] = [centre_image(intensity_to_image(f)) for f in frames[1]]
+                sample["clean"] = [f.image for f in frames[1]]
         for row, method in built.items():
             bar.set_description(f"{row}: {path.stem}")
             run_seconds, segments, streams = _run_sequence(
@@ -280,7 +280,7 @@ def _run_sequence(
     bins: int,
     rng: int,
     keep_streams: bool,
-    recon: tuple[Any, tuple[np.ndarray, np.ndarray], DownstreamScores] | None = None,
+    recon: tuple[Any, tuple[np.ndarray, list[CleanFrame]], DownstreamScores] | None = None,
     keep_images: list[np.ndarray] | None = None,
 ) -> tuple[float, list[SegmentMetrics], tuple[np.ndarray, ...]]:
     """Stream one sequence through one method, scoring each segment once complete.
@@ -327,8 +327,17 @@ def _run_sequence(
     return prepass_seconds + sum(run.call_seconds), segments, streams
 
 
+def _clean_frames(path: Path) -> tuple[np.ndarray, list[CleanFrame]] | None:
+    """A file's clean frames, each prepared once for every stream's scores (None: no frames)."""
+    frames = read_frames(path)
+    if frames is None:
+        return None
+    times, images = frames
+    return times, [CleanFrame.of(f) for f in images]
+
+
 def _window_scorer(
-    recon: tuple[Any, tuple[np.ndarray, np.ndarray], DownstreamScores] | None,
+    recon: tuple[Any, tuple[np.ndarray, list[CleanFrame]], DownstreamScores] | None,
     size: SensorSize,
     window_us: int,
     keep_images: list[np.ndarray] | None = None,
@@ -359,7 +368,7 @@ def _reconstruct_gt(
     start: int,
     end: int,
     window_us: int,
-    frames: tuple[np.ndarray, np.ndarray],
+    frames: tuple[np.ndarray, list[CleanFrame]],
     scores: DownstreamScores,
     keep_images: list[np.ndarray] | None = None,
 ) -> None:

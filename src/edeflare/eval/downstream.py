@@ -38,7 +38,7 @@ import numpy as np
 from ..recon.clips import centre_image, intensity_to_image
 from .flare_score import flare_geometry
 
-__all__ = ["DownstreamScores", "image_scores"]
+__all__ = ["CleanFrame", "DownstreamScores", "image_scores"]
 
 
 def image_scores(image: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
@@ -63,6 +63,31 @@ def image_scores(image: np.ndarray, reference: np.ndarray) -> tuple[float, float
     return psnr, ssim
 
 
+@dataclass(frozen=True)
+class CleanFrame:
+    """A clean frame prepared for scoring: mapped and centred like a reconstruction, and
+    the flare annulus around its light. Made once per frame, used by every stream.
+
+    Examples
+    --------
+    >>> clean = np.full((40, 60), 0.05); clean[19:22, 29:32] = 1.0
+    >>> ref = CleanFrame.of(clean)
+    >>> round(float(ref.image.mean()), 6), int(ref.annulus.sum()) > 0
+    (0.5, True)
+    """
+
+    image: np.ndarray
+    annulus: np.ndarray
+
+    @classmethod
+    def of(cls, intensity: np.ndarray) -> CleanFrame:
+        """From a clean intensity image (:func:`~edeflare.recon.clips.intensity_to_image`,
+        centred; the annulus of :func:`~edeflare.eval.flare_score.flare_geometry`)."""
+        image = centre_image(intensity_to_image(intensity))
+        _, annulus, _ = flare_geometry(image).masks(image.shape)
+        return cls(image, annulus)
+
+
 @dataclass
 class DownstreamScores:
     """PSNR, SSIM and flare-region error per scored window of one stream kind (a
@@ -82,15 +107,15 @@ class DownstreamScores:
     ssim: list[float] = field(default_factory=list)
     flare: list[float] = field(default_factory=list)
 
-    def add(self, image: np.ndarray, intensity: np.ndarray) -> None:
-        """Score one reconstructed image against the clean intensity image of its instant."""
-        clean = centre_image(intensity_to_image(intensity))
+    def add(self, image: np.ndarray, intensity: np.ndarray | CleanFrame) -> None:
+        """Score one reconstructed image against the clean intensity image of its instant
+        (or that image already prepared, :class:`CleanFrame`)."""
+        clean = intensity if isinstance(intensity, CleanFrame) else CleanFrame.of(intensity)
         mine = centre_image(image)
-        psnr, ssim = image_scores(mine, clean)
+        psnr, ssim = image_scores(mine, clean.image)
         self.psnr.append(psnr)
         self.ssim.append(ssim)
-        _, annulus, _ = flare_geometry(clean).masks(clean.shape)
-        diff = (np.asarray(mine, np.float64) - clean)[annulus]
+        diff = (np.asarray(mine, np.float64) - clean.image)[clean.annulus]
         self.flare.append(float(np.sqrt(np.mean(diff**2))) if diff.size else math.nan)
 
     def means(self) -> dict[str, float]:
