@@ -26,7 +26,17 @@ from ..errors import EdeflareError
 from ..io._atomic import atomic_path
 from . import create_model, get_preset
 
-__all__ = ["ModelCard", "WeightsError", "load_model", "read_card", "save_model"]
+__all__ = [
+    "ModelCard",
+    "WeightsError",
+    "init_from",
+    "load_model",
+    "read_card",
+    "read_metadata",
+    "read_tensors",
+    "save_model",
+    "write_weights",
+]
 
 _CARD_KEY = "edeflare_card"
 
@@ -85,9 +95,46 @@ def save_model(path: str | os.PathLike[str], model: nn.Module, card: ModelCard) 
     'unet2d.lite'
     """
     get_preset(card.preset)
+    write_weights(path, model, _CARD_KEY, card.to_dict())
+
+
+def write_weights(
+    path: str | os.PathLike[str], model: nn.Module, key: str, card: dict[str, Any]
+) -> None:
+    """Write ``model``'s tensors to a ``.safetensors`` file, atomically, with ``card`` as JSON
+    under metadata ``key`` (the one writer of edeflare's weights files).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "w.safetensors"
+    >>> write_weights(p, nn.Linear(2, 1), "my_card", {"n": 1})
+    >>> read_metadata(p), sorted(read_tensors(p))
+    ({'my_card': '{"n": 1}'}, ['bias', 'weight'])
+    """
     tensors = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
     with atomic_path(Path(path)) as tmp:
-        save_file(tensors, str(tmp), metadata={_CARD_KEY: json.dumps(card.to_dict())})
+        save_file(tensors, str(tmp), metadata={key: json.dumps(card)})
+
+
+def read_metadata(path: Path) -> dict[str, str]:
+    """The metadata of a weights file, without loading tensors (pickles refused)."""
+    _check_file(path)
+    try:
+        from safetensors import safe_open
+
+        with safe_open(str(path), framework="pt") as f:
+            return f.metadata() or {}
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise WeightsError(f"{path}: not a readable safetensors file ({exc})") from None
+
+
+def read_tensors(path: Path) -> dict[str, torch.Tensor]:
+    """The tensors of a weights file (a clear error for a corrupt one)."""
+    try:
+        return load_file(str(path))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise WeightsError(f"{path}: corrupt weights ({exc})") from None
 
 
 def _check_file(path: Path) -> None:
@@ -111,14 +158,7 @@ def read_card(path: str | os.PathLike[str]) -> ModelCard:
         from .export import read_onnx_card
 
         return read_onnx_card(path)
-    _check_file(path)
-    try:
-        from safetensors import safe_open
-
-        with safe_open(str(path), framework="pt") as f:
-            meta = f.metadata() or {}
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise WeightsError(f"{path}: not a readable safetensors file ({exc})") from None
+    meta = read_metadata(path)
     if _CARD_KEY not in meta:
         raise WeightsError(f"{path}: no edeflare model card in the metadata")
     try:
@@ -146,10 +186,7 @@ def init_from(model: nn.Module, path: str | os.PathLike[str]) -> list[str]:
     """
     path = Path(path)
     read_card(path)  # a safetensors file of edeflare's, not a pickle
-    try:
-        tensors = load_file(str(path))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise WeightsError(f"{path}: corrupt weights ({exc})") from None
+    tensors = read_tensors(path)
     expected = model.state_dict()
     extra = sorted(set(tensors) - set(expected))
     wrong = sorted(k for k in tensors if k in expected and tensors[k].shape != expected[k].shape)
@@ -172,10 +209,7 @@ def load_model(
         model = create_model(card.preset)
     except ValueError as exc:
         raise WeightsError(f"{path}: {exc}") from None
-    try:
-        tensors = load_file(str(path))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise WeightsError(f"{path}: corrupt weights ({exc})") from None
+    tensors = read_tensors(path)
     expected = model.state_dict()
     missing = sorted(set(expected) - set(tensors))
     extra = sorted(set(tensors) - set(expected))

@@ -9,12 +9,9 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from safetensors import SafetensorError, safe_open
-from safetensors.torch import load_file, save_file
 
-from ..io._atomic import atomic_path
 from ..models.infer import bundled_weights
-from ..models.weights import WeightsError, _check_file
+from ..models.weights import WeightsError, read_metadata, read_tensors, write_weights
 from .network import FireNet
 
 __all__ = ["BUNDLED", "ReconCard", "bundled_path", "load_reconstructor", "save_reconstructor"]
@@ -70,9 +67,7 @@ def save_reconstructor(path: str | os.PathLike[str], model: FireNet, card: Recon
     >>> load_reconstructor(p)[1].bins
     5
     """
-    tensors = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
-    with atomic_path(Path(path)) as tmp:
-        save_file(tensors, str(tmp), metadata={_CARD_KEY: json.dumps(card.to_dict())})
+    write_weights(path, model, _CARD_KEY, card.to_dict())
 
 
 def load_reconstructor(
@@ -80,13 +75,7 @@ def load_reconstructor(
 ) -> tuple[FireNet, ReconCard]:
     """Load a reconstructor (default: the bundled one): ``(model in eval mode, card)``."""
     path = bundled_path() if path is None or str(path) == BUNDLED else Path(path)
-    _check_file(path)
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            meta = f.metadata() or {}
-        tensors = load_file(str(path))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise WeightsError(f"{path}: not a readable safetensors file ({exc})") from None
+    meta = read_metadata(path)
     if _CARD_KEY not in meta:
         raise WeightsError(f"{path}: no reconstructor card in the metadata (a de-flaring model?)")
     try:
@@ -94,6 +83,7 @@ def load_reconstructor(
     except (json.JSONDecodeError, TypeError) as exc:
         raise WeightsError(f"{path}: reconstructor card is not valid JSON ({exc})") from None
     model = FireNet(card.bins, card.features)
+    tensors = read_tensors(path)
     expected = model.state_dict()
     if set(expected) != set(tensors) or any(
         tensors[k].shape != expected[k].shape for k in expected
