@@ -118,3 +118,54 @@ def same_events(a: np.ndarray, b: np.ndarray) -> bool:
         and a.shape == b.shape
         and all(np.array_equal(a[k], b[k]) for k in ("t", "x", "y", "p"))
     )
+
+
+def tree_bytes(path: Path) -> dict[str, bytes]:
+    """Every file under ``path`` by relative name with its bytes (a file: ``{"": bytes}``)."""
+    if path.is_file():
+        return {"": path.read_bytes()}
+    files = sorted(p for p in path.rglob("*") if p.is_file())
+    return {str(p.relative_to(path)): p.read_bytes() for p in files}
+
+
+def kill_at_random_moments(argv: list[str], out: Path, reference: Path, seeds: range) -> int:
+    """SIGKILL ``edeflare argv`` (which writes ``out``) at random moments, rerun, compare.
+
+    ``argv`` names ``out``; a straight run into ``reference`` (same arguments, the
+    output swapped) sets the clock: each kill lands at a uniform random moment of
+    its wall time, start-up included. After every kill nothing may sit under the
+    output's name but complete files equal to the reference's, and a rerun
+    must give the reference's bytes exactly. Returns how many kills landed
+    before the run ended (the caller asserts that most did).
+    """
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    swapped = [str(reference) if a == str(out) else a for a in argv]
+    start = time.monotonic()
+    assert subprocess.run([sys.executable, "-m", "edeflare", *swapped]).returncode == 0
+    wall = time.monotonic() - start
+    expected = tree_bytes(reference)
+    killed = 0
+    for seed in seeds:
+        shutil.rmtree(out, ignore_errors=True) if out.is_dir() else out.unlink(missing_ok=True)
+        moment = np.random.default_rng(seed).uniform(0.0, wall)
+        child = subprocess.Popen(
+            [sys.executable, "-m", "edeflare", *argv],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        time.sleep(moment)
+        child.send_signal(signal.SIGKILL)
+        child.wait()
+        killed += child.returncode == -signal.SIGKILL
+        if out.exists():  # whatever is there under final names is complete
+            for name, data in tree_bytes(out).items():
+                if ".partial" not in name and not name.startswith("."):
+                    assert data == expected.get(name), f"{name} half-written at {moment:.2f} s"
+        rerun = subprocess.run([sys.executable, "-m", "edeflare", *argv], capture_output=True)
+        assert rerun.returncode == 0, rerun.stderr.decode()
+        assert tree_bytes(out) == expected, f"rerun after a kill at {moment:.2f} s differs"
+    return killed

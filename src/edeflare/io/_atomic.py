@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,20 +19,36 @@ def _umask() -> int:
     return mask
 
 
+def _running(pid: int) -> bool:
+    """True when a process ``pid`` exists on this machine (whoever owns it)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 class AtomicFile:
     """A temporary path beside ``path`` that becomes ``path`` on :meth:`commit`.
 
     The temporary name keeps the target's suffix (writers that choose the
-    format by suffix still work), starts with ``.`` and contains
-    ``.partial``. Until :meth:`commit`, ``path`` is untouched: an error or a
-    killed process leaves the old file or none, never a half-written one.
+    format by suffix still work), starts with ``.``, holds the writer's
+    process id and contains ``.partial``. Until :meth:`commit`, ``path`` is
+    untouched: an error or a killed process leaves the old file or none, never
+    a half-written one. A commit also deletes the temporaries that killed
+    writers of the same target left behind (their process is gone), with the
+    files a writer keeps beside its temporary (``<temporary>.<part>``).
     """
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, name = tempfile.mkstemp(
-            prefix=f".{self.path.name}.", suffix=f".partial{self.path.suffix}", dir=self.path.parent
+            prefix=f".{self.path.name}.{os.getpid()}-",
+            suffix=f".partial{self.path.suffix}",
+            dir=self.path.parent,
         )
         os.close(fd)
         self.tmp = Path(name)
@@ -39,6 +57,19 @@ class AtomicFile:
         """Move the finished temporary file onto the target (with the usual umask mode)."""
         os.chmod(self.tmp, 0o666 & ~_umask())
         os.replace(self.tmp, self.path)
+        self._remove_orphans()
+
+    def _remove_orphans(self) -> None:
+        """Delete temporaries of this target whose writing process no longer runs."""
+        pattern = re.compile(
+            rf"\.{re.escape(self.path.name)}\.(\d+)-.*\.partial{re.escape(self.path.suffix)}(\..+)?"
+        )
+        name, suffix = glob.escape(self.path.name), glob.escape(self.path.suffix)
+        for stale in self.path.parent.glob(f".{name}.*.partial{suffix}*"):  # spools too
+            match = pattern.fullmatch(stale.name)
+            if match and not _running(int(match.group(1))):
+                with contextlib.suppress(FileNotFoundError):
+                    stale.unlink()
 
     def discard(self) -> None:
         """Delete the temporary file (idempotent)."""
