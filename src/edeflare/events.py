@@ -224,38 +224,31 @@ def make_events(
     return events
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
+@numba.njit(cache=True, nogil=True)
 def _scan(t, x, y, p):  # pragma: no cover - compiled
-    """One pass over a stream: (index of first decreasing t or -1, max x, max y, max p)."""
-    n_blocks = 16
-    block = (t.size + n_blocks - 1) // n_blocks
-    stats = np.zeros((n_blocks, 4), dtype=np.int64)
-    for k in numba.prange(n_blocks):
-        lo = k * block
-        hi = min(t.size, lo + block)
-        decreasing = False
-        max_x = 0
-        max_y = 0
-        max_p = 0
-        for i in range(lo, hi):  # branch-free body so the loop vectorises
-            if i > 0:
-                decreasing |= t[i] < t[i - 1]
-            max_x = max(max_x, np.int64(x[i]))
-            max_y = max(max_y, np.int64(y[i]))
-            max_p = max(max_p, np.int64(p[i]))
-        stats[k, 0] = decreasing
-        stats[k, 1] = max_x
-        stats[k, 2] = max_y
-        stats[k, 3] = max_p
+    """One pass over a stream: (index of first decreasing t or -1, max x, max y, max p).
+
+    Serial: about 1 ns per event. A ``parallel=True`` version was 7x slower on
+    windows of 60 k events (thread start-up per call, and contention with the
+    network's thread), which is what streaming commands validate.
+    """
+    decreasing = False
+    max_x = 0
+    max_y = 0
+    max_p = 0
+    for i in range(t.size):  # branch-free body so the loop vectorises
+        if i > 0:
+            decreasing |= t[i] < t[i - 1]
+        max_x = max(max_x, np.int64(x[i]))
+        max_y = max(max_y, np.int64(y[i]))
+        max_p = max(max_p, np.int64(p[i]))
     first_bad = -1
-    for k in range(n_blocks):
-        if stats[k, 0]:
-            for i in range(max(1, k * block), min(t.size, (k + 1) * block)):
-                if t[i] < t[i - 1]:
-                    first_bad = i
-                    break
-            break
-    return first_bad, stats[:, 1].max(), stats[:, 2].max(), stats[:, 3].max()
+    if decreasing:
+        for i in range(1, t.size):
+            if t[i] < t[i - 1]:
+                first_bad = i
+                break
+    return first_bad, max_x, max_y, max_p
 
 
 def check_events(events: Any, sensor_size: SensorSize | None = None) -> np.ndarray:

@@ -37,8 +37,10 @@ the window's events per pixel (:func:`event_pixel_features`).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 import torch
 import torch.nn.functional as F
@@ -195,21 +197,163 @@ def event_features(
     >>> f.shape, round(float(f[0, 0, 0]), 4), float(f[4, 0, 0])  # log(1 + 2), 2 of 16 pixels
     ((5, 1, 2), 1.0986, 0.125)
     """
-    width, height = sensor_size
+    width, height = int(sensor_size[0]), int(sensor_size[1])
     h, w = -(-height // scale), -(-width // scale)
-    b = ((events["t"] - int(window_start_us)) * bins) // int(window_us)
-    cx = events["x"].astype(np.int64) // scale
-    cy = events["y"].astype(np.int64) // scale
-    channel = b + bins * (1 - events["p"].astype(np.int64))
-    idx = (channel * h + cy) * w + cx
-    counts = np.bincount(idx, minlength=2 * bins * h * w).reshape(2 * bins, h, w)
-    # the pixels that fired: a scatter into the frame, cheaper than np.unique per window
-    seen = np.zeros(height * width, dtype=bool)
-    seen[events["y"].astype(np.int64) * width + events["x"]] = True
-    pixels = np.flatnonzero(seen)
-    cells = (pixels // width // scale) * w + (pixels % width) // scale
-    active = np.bincount(cells, minlength=h * w).reshape(1, h, w) / float(scale * scale)
-    return np.concatenate([np.log1p(counts), active]).astype(np.float32)
+    seen = _frames(width, height)[1]
+    counts = _cell_counts(
+        events["t"], events["x"], events["y"], events["p"], int(window_start_us), int(window_us),
+        int(bins), int(scale), h, w, seen, width,
+    )  # fmt: skip
+    counts[:-1] = np.log1p(counts[:-1])
+    counts[-1] /= float(scale * scale)
+    return counts.astype(np.float32)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell_counts(
+    t, x, y, p, t0, window_us, bins, scale, h, w, seen, width
+):  # pragma: no cover - compiled
+    """Events per (polarity, bin, cell), then pixels that fired per cell ``(2 bins + 1, h, w)``.
+
+    ``seen`` is a zeroed frame of the sensor's pixels, left zeroed.
+    """
+    out = np.zeros((2 * bins + 1, h, w), np.float64)
+    for i in range(t.size):
+        b = ((np.int64(t[i]) - t0) * bins) // window_us
+        c = b + bins * (1 - np.int64(p[i] != 0))
+        cy, cx = np.int64(y[i]) // scale, np.int64(x[i]) // scale
+        out[c, cy, cx] += 1.0
+        pix = np.int64(y[i]) * width + x[i]
+        if seen[pix] == 0:
+            seen[pix] = 1
+            out[2 * bins, cy, cx] += 1.0
+    for i in range(t.size):
+        seen[np.int64(y[i]) * width + x[i]] = 0
+    return out
+
+
+# The per-event work (pixel counts, box sums, the bilinear logit, the refinement) is
+# hand-written with numba rather than numpy: numpy needs a bincount, a summed-area
+# table of the whole frame, a dozen full-length temporaries and gathers per window;
+# this is one pass per event, 3-5x faster at 1-3 M events/s, and releases the GIL.
+_scratch = threading.local()
+
+
+def _frames(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two zeroed ``int32`` count frames of one thread, reused across windows.
+
+    The kernels leave them zeroed (they reset the pixels they touched): a fresh
+    frame per window costs more in page faults than the counting itself.
+    """
+    key = (int(width), int(height))
+    if getattr(_scratch, "key", None) != key:
+        _scratch.key = key
+        _scratch.frames = (np.zeros(key[0] * key[1], np.int32), np.zeros(key[0] * key[1], np.int32))
+    return _scratch.frames
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _box(total, width, height, xi, yi, r):  # pragma: no cover - compiled
+    """Sum of ``total`` (a ``height x width`` frame, flat) over the square of radius ``r``."""
+    s = 0
+    for yy in range(max(yi - r, 0), min(yi + r + 1, height)):
+        row = yy * width
+        for xx in range(max(xi - r, 0), min(xi + r + 1, width)):
+            s += total[row + xx]
+    return s
+
+
+@numba.njit(cache=True, nogil=True)
+def _count(x, y, p, on, total, width, sign):  # pragma: no cover - compiled
+    """Add (``sign`` 1) or remove (-1) the events' counts in the ON and total frames."""
+    for i in range(x.size):
+        pix = np.int64(y[i]) * width + x[i]
+        total[pix] += sign
+        on[pix] += sign * (p[i] != 0)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _pixel_row(x, y, p, on, total, width, height, i, out):  # pragma: no cover - compiled
+    """Event ``i``'s four counts (own polarity, other, 3x3 ring, 5x5 ring) into ``out``."""
+    xi, yi = np.int64(x[i]), np.int64(y[i])
+    pix = yi * width + xi
+    own = on[pix] if p[i] != 0 else total[pix] - on[pix]
+    b3 = _box(total, width, height, xi, yi, 1)
+    out[0] = own
+    out[1] = total[pix] - own
+    out[2] = b3 - total[pix]
+    out[3] = _box(total, width, height, xi, yi, 2) - b3
+
+
+@numba.njit(cache=True, nogil=True)
+def _pixel_counts(x, y, p, on, total, width, height):  # pragma: no cover - compiled
+    """The four counts of every event ``(n, 4)``; ``on``/``total`` zeroed frames."""
+    _count(x, y, p, on, total, width, 1)
+    out = np.empty((x.size, 4), np.int64)
+    for i in range(x.size):
+        _pixel_row(x, y, p, on, total, width, height, i, out[i])
+    _count(x, y, p, on, total, width, -1)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _event_logits(
+    t,
+    x,
+    y,
+    p,
+    logits,
+    t0,
+    window_us,
+    scale,
+    on,
+    total,
+    width,
+    height,
+    w_in,
+    b_in,
+    gain,
+    w_out,
+    b_out,
+):  # pragma: no cover - compiled
+    """Each event's keep logit: the bilinear sample of ``logits (2 bins, h, w)`` at its
+    pixel centre, plus the refinement where ``w_in`` has rows (see event_keep_mask)."""
+    n_ch, h, w = logits.shape
+    bins = n_ch // 2
+    hidden = w_in.shape[0]
+    if hidden:
+        _count(x, y, p, on, total, width, 1)
+    f = np.empty(4, np.int64)
+    out = np.empty(t.size, np.float64)
+    for i in range(t.size):
+        b = ((np.int64(t[i]) - t0) * bins) // window_us
+        c = b + bins * (1 - np.int64(p[i] != 0))
+        # align_corners=False: pixel centre x + 0.5 sits at (x + 0.5) / scale - 0.5 in cells
+        fx = min(max((x[i] + 0.5) / scale - 0.5, 0.0), w - 1.0)
+        fy = min(max((y[i] + 0.5) / scale - 0.5, 0.0), h - 1.0)
+        x0, y0 = np.int64(np.floor(fx)), np.int64(np.floor(fy))
+        x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+        ax, ay = fx - x0, fy - y0
+        v = (
+            np.float64(logits[c, y0, x0]) * (1 - ax) * (1 - ay)
+            + np.float64(logits[c, y0, x1]) * ax * (1 - ay)
+            + np.float64(logits[c, y1, x0]) * (1 - ax) * ay
+            + np.float64(logits[c, y1, x1]) * ax * ay
+        )
+        if hidden:
+            _pixel_row(x, y, p, on, total, width, height, i, f)
+            f0, f1, f2, f3 = np.log1p(f[0]), np.log1p(f[1]), np.log1p(f[2]), np.log1p(f[3])
+            delta = 0.0
+            for k in range(hidden):
+                a = f0 * w_in[k, 0] + f1 * w_in[k, 1] + f2 * w_in[k, 2] + f3 * w_in[k, 3]
+                a += b_in[k] + v * gain[k]
+                if a > 0.0:
+                    delta += a * w_out[k]
+            v = v + delta + b_out[0]
+        out[i] = v
+    if hidden:
+        _count(x, y, p, on, total, width, -1)
+    return out
 
 
 def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarray:
@@ -225,28 +369,10 @@ def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np
     >>> np.expm1(event_pixel_features(ev, (6, 4))).round().tolist()
     [[1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.0], [1.0, 0.0, 2.0, 0.0]]
     """
-    width, height = sensor_size
-    x, y = events["x"].astype(np.int64), events["y"].astype(np.int64)
-    pix = y * width + x
-    p = (events["p"] != 0).astype(np.int64)
-    # one pass for both polarities; int32 box sums by a summed-area table (exact
-    # integers, half the memory traffic of int64: this runs once per window)
-    counts = np.bincount(pix * 2 + p, minlength=2 * width * height)
-    total = (counts[0::2] + counts[1::2]).astype(np.int32).reshape(height, width)
-    sat = np.zeros((height + 1, width + 1), np.int32)
-    np.cumsum(total, 0, out=sat[1:, 1:])
-    np.cumsum(sat[1:, 1:], 1, out=sat[1:, 1:])
-
-    def box(r: int) -> np.ndarray:
-        x0, x1 = np.maximum(x - r, 0), np.minimum(x + r + 1, width)
-        y0, y1 = np.maximum(y - r, 0), np.minimum(y + r + 1, height)
-        return sat[y1, x1] - sat[y0, x1] - sat[y1, x0] + sat[y0, x0]
-
-    own = counts[pix * 2 + p]
-    other = counts[pix * 2 + 1 - p]
-    b3, b5 = box(1), box(2)
-    feats = np.stack([own, other, b3 - own - other, b5 - b3], axis=1)
-    return np.log1p(feats.astype(np.float64))
+    width, height = int(sensor_size[0]), int(sensor_size[1])
+    on, total = _frames(width, height)
+    counts = _pixel_counts(events["x"], events["y"], events["p"], on, total, width, height)
+    return np.log1p(counts.astype(np.float64))
 
 
 def event_keep_mask(
@@ -279,35 +405,41 @@ def event_keep_mask(
     >>> event_keep_mask(lg, ev, 0, 20, scale=4).tolist()
     [True, False]
     """
-    n_ch, h, w = logits.shape
-    bins = n_ch // 2
-    b = ((events["t"] - int(window_start_us)) * bins) // int(window_us)
-    channel = b + bins * (1 - events["p"].astype(np.int64))
-    # align_corners=False: pixel centre x + 0.5 sits at (x + 0.5) / scale - 0.5 in cells.
-    fx = np.clip((events["x"] + 0.5) / scale - 0.5, 0, w - 1)
-    fy = np.clip((events["y"] + 0.5) / scale - 0.5, 0, h - 1)
-    x0 = np.floor(fx).astype(np.int64)
-    y0 = np.floor(fy).astype(np.int64)
-    x1 = np.minimum(x0 + 1, w - 1)
-    y1 = np.minimum(y0 + 1, h - 1)
-    ax, ay = fx - x0, fy - y0
-    flat = logits.reshape(n_ch, -1)
-    base = channel
-    v = (
-        flat[base, y0 * w + x0] * (1 - ax) * (1 - ay)
-        + flat[base, y0 * w + x1] * ax * (1 - ay)
-        + flat[base, y1 * w + x0] * (1 - ax) * ay
-        + flat[base, y1 * w + x1] * ax * ay
-    )
     if not 0.0 < threshold < 1.0:
         raise ValueError(f"threshold must be in (0, 1), got {threshold}")
-    if pixel_params is not None:
+    if pixel_params is None:
+        on = total = np.zeros(0, np.int32)
+        width = height = 0
+        w_in = np.zeros((0, 4))
+        b_in = gain = w_out = b_out = np.zeros(1)
+    else:
         if sensor_size is None:
             raise ValueError("the per-pixel refinement needs the sensor size")
-        f = event_pixel_features(events, sensor_size)
-        hidden = f @ pixel_params["w_in"].T + pixel_params["b_in"]
-        hidden += v[:, None] * pixel_params["gain"]
-        v = v + np.maximum(hidden, 0.0) @ pixel_params["w_out"] + pixel_params["b_out"][0]
+        width, height = int(sensor_size[0]), int(sensor_size[1])
+        on, total = _frames(width, height)
+        w_in, b_in, gain, w_out, b_out = (
+            np.ascontiguousarray(pixel_params[k], dtype=np.float64)
+            for k in ("w_in", "b_in", "gain", "w_out", "b_out")
+        )
+    v = _event_logits(
+        events["t"],
+        events["x"],
+        events["y"],
+        events["p"],
+        np.ascontiguousarray(logits, dtype=np.float32),
+        int(window_start_us),
+        int(window_us),
+        int(scale),
+        on,
+        total,
+        width,
+        height,
+        w_in,
+        b_in,
+        gain,
+        w_out,
+        b_out,
+    )
     return v > np.log(threshold / (1.0 - threshold)) - np.log(3.0)
 
 
