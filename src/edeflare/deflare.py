@@ -616,6 +616,7 @@ class ModelMethod(Method):
             keep_threshold=p["keep_threshold"],
         )
         size = check_sensor_size(sensor_size)
+        deflarer.warm_up(size)
 
         def transform(
             batch: list[tuple[int, np.ndarray]], span: tuple[int, int | None]
@@ -812,6 +813,8 @@ class StreamRun:
         max_lag_us: int | None,
     ) -> None:
         self.streamer = method.streamer(sensor_size, rng=rng, prepared=prepared)
+        # load the stream check's compiled kernel now (start-up), not in the first window
+        check_events(np.zeros(1, dtype=EVENT_DTYPE))
         self.reorder = None if self.streamer.ordered else _Reorder(self.streamer, max_lag_us)
         self.n_in = 0
         self.first_t: int | None = None

@@ -213,3 +213,17 @@ def test_the_model_method_takes_a_bundled_model_by_name(monkeypatch, identity_we
     assert method.params["weights"] == str(assets / "night.safetensors")
     with pytest.raises(EdeflareError, match="no bundled model 'dusk'"):
         create_method("model", weights="dusk")
+
+
+@pytest.mark.parametrize("model", ["night", "eflare"])
+def test_warm_up_changes_no_output(model, rng):
+    events = random_events(rng, 20_000, (64, 48), t0=5_000, span_us=90_000)
+    windows = list(iter_time_windows(events, 20_000))
+    cold = ModelDeflarer(bundled_weights(model), batch_windows=3)
+    warm = ModelDeflarer(bundled_weights(model), batch_windows=3)
+    warm.warm_up((64, 48))
+    a = list(cold.windows(windows, (64, 48)))
+    b = list(warm.windows(windows, (64, 48)))
+    assert [s for s, _ in a] == [s for s, _ in b]
+    assert all(same_events(x, y) for (_, x), (_, y) in zip(a, b, strict=True))
+    assert 0 < sum(e.size for _, e in b) < events.size  # a real model, really deciding

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from ..errors import EdeflareError
-from ..events import SensorSize, check_events
+from ..events import EVENT_DTYPE, SensorSize, check_events
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
@@ -369,6 +369,18 @@ class ModelDeflarer:
                 )
                 out = out[inside]
             yield start, out
+
+    def warm_up(self, sensor_size: SensorSize) -> None:
+        """Run one batch of tiny windows through the whole path, so the first real one
+        does not pay for loading compiled kernels and preparing the network's
+        layers for this shape (about 0.5 s on CPU): start-up, not latency."""
+        batch = []
+        for k in range(self.batch_windows):
+            ev = np.zeros(1, dtype=EVENT_DTYPE)  # one event at pixel (0, 0)
+            ev["t"] = k * self.window_us
+            batch.append((k * self.window_us, ev))
+        for _ in self.windows(batch, sensor_size):
+            pass
 
     def __call__(self, events: np.ndarray, sensor_size: SensorSize, start_us: int) -> np.ndarray:
         """De-flare one window starting at ``start_us``."""
