@@ -12,8 +12,10 @@ in a fresh subprocess (model loading included), and reports
   (median ``latency_ms``, ``p95_ms``, ``max_ms``; :class:`DeflareStats`),
 - the peak resident memory of the process (``peak_rss_mib``).
 
-The mask presets also run through ONNX Runtime (``--runtime onnx``: the
-network exported in memory at start-up).
+The model rows run the network with torch (``--runtime torch``); the mask
+presets also run through ONNX Runtime (``--runtime onnx``: the network exported
+in memory at start-up), which is what ``--runtime auto`` (the default) picks
+for mask models on CPU where the ``onnx`` extra is installed.
 
 The reference in the same run is the previous default bundled model (``eflare``,
 a ``unet2d.lite`` on full-resolution voxel grids): the ``speedup`` column is its
@@ -100,7 +102,7 @@ def main() -> None:
         presets = ("unet2d.lite", "mask.pixel", "mask.fast", "mask.lite")
         models = {p: _weights(tmp, p) for p in presets}
         methods: list[tuple[str, str, dict[str, str]]] = [
-            (f"model {p}", "model", {"weights": w}) for p, w in models.items()
+            (f"model {p}", "model", {"weights": w, "runtime": "torch"}) for p, w in models.items()
         ]
         methods += [
             (f"model {p} (onnx)", "model", {"weights": models[p], "runtime": "onnx"})

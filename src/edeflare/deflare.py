@@ -423,8 +423,9 @@ class ModelParams:
         default="auto",
         metadata=cli_option(
             "--runtime",
-            "what runs the network: auto (ONNX Runtime for .onnx files, else torch), torch, "
-            "onnx (exports the weights in memory; needs the onnx extra)",
+            "what runs the network: auto (ONNX Runtime for .onnx files, and for mask models "
+            "on CPU where the onnx extra is installed; else torch), torch, onnx (exports the "
+            "weights in memory; needs the onnx extra)",
             choices=("auto", "torch", "onnx"),
         ),
     )
