@@ -325,3 +325,42 @@ def test_report_renders_in_a_headless_browser(built, tmp_path):
     assert pixels.shape[:2] == (2000, 1200)
     assert pixels.std() > 20  # not a blank page
     assert _colored(pixels, ON_COLOR) > 200 and _colored(pixels, OFF_COLOR) > 200
+
+
+def test_real_recordings_are_reconstructed_before_and_after_each_method(built, tmp_path, capsys):
+    split, *_ = built
+    scene = toy_flare_pair(SIZE, duration_us=60_000, rng=21)
+    recording = tmp_path / "night drive.h5"  # a name to escape and to keep
+    write_dsec_groups(recording, {"events": scene.observed}, SIZE, SPAN)
+    out = tmp_path / "html"
+    argv = ["benchmark", str(split), "--methods", "raw", "pfd-b", "--samples", "1"]
+    assert main([*argv, "--html", str(out), "--real", str(recording)]) == 0
+    capsys.readouterr()
+    png = out / "real_night drive.png"
+    text = (out / "index.html").read_text(encoding="utf-8")
+    assert 'id="real-title"' in text and 'src="real_night drive.png"' in text
+    counts = text[text.index("night drive.h5: events per stream") :].split("</figcaption>")[0]
+    n = scene.observed.size
+    assert f"input {n:,}, raw {n:,}, pfd-b " in counts
+    assert int(counts.split("pfd-b ")[1].rstrip(".").replace(",", "")) < n  # flare removed
+    image = np.asarray(Image.open(png))
+    assert image.shape[1] >= 4 * SIZE[0]  # input events, then input, raw and pfd-b
+    assert main([*argv, "--real", str(recording)]) == 1
+    assert "--real shows recordings in the HTML report" in capsys.readouterr().err
+
+
+def test_reconstruct_recording_on_a_real_flare_recording(real_data):
+    from edeflare.eval.downstream import reconstruct_recording
+    from edeflare.events import window_start_for
+    from edeflare.io import read_events
+
+    r = reconstruct_recording(
+        real_data / "davis346_flicker_lamps.aedat4", {"model": "model", "raw": "raw"}
+    )
+    assert r.columns == ["input events", "input", "model", "raw"]
+    assert r.events["raw"] == r.events["input"] == 117_667  # the whole 130 ms recording
+    assert 0.5 * r.events["input"] < r.events["model"] < r.events["input"]  # flare removed
+    events, _ = read_events(real_data / "davis346_flicker_lamps.aedat4")
+    start = window_start_for(int(events["t"][0]), 20_000)  # aligned 20 ms windows
+    assert r.span_us == (start, start + 20_000 * ((int(events["t"][-1]) + 1 - start) // 20_000))
+    assert r.image.dtype == np.uint8 and r.image.shape[2] == 3

@@ -53,6 +53,15 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="also reconstruct every stream into images (the bundled reconstructor, or these "
         "weights) and score PSNR / SSIM against the files' clean frames (eflare-r-sim files)",
     )
+    p.add_argument(
+        "--real",
+        nargs="+",
+        type=Path,
+        default=[],
+        metavar="FILE",
+        help="with --html: also reconstruct these real recordings before and after each "
+        "method (qualitative: real recordings have no flare-free image)",
+    )
     p.set_defaults(func=run)
 
 
@@ -92,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
         rows[name] = "model"
         params[name] = {"decoder": args.decoder, "weights": path}
     collector = None
+    if args.real and args.html is None:
+        raise EdeflareError("--real shows recordings in the HTML report: give --html DIR too")
     if args.html is not None:
         from ..eval.report import FigureCollector, check_report_dir
 
@@ -120,7 +131,16 @@ def run(args: argparse.Namespace) -> int:
         table.save(report, markdown=markdown, details={"benchmark": result.to_dict()})
         print(f"wrote {report}, {report.with_suffix('.csv')} and {report.with_suffix('.json')}")
     if collector is not None:
+        from ..deflare import create_method
         from ..eval.report import write_report
 
-        print(f"wrote {write_report(result, args.html, figures=collector.finish())}")
+        real_methods = {k: create_method(v, **params.get(k, {})) for k, v in rows.items()}
+        page = write_report(
+            result,
+            args.html,
+            figures=collector.finish(),
+            real=args.real,
+            real_methods=real_methods,
+        )
+        print(f"wrote {page}")
     return 0

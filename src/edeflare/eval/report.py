@@ -14,7 +14,10 @@ CSS, no script, no network) beside the PNG and GIF files it shows and a
   integrator of :mod:`edeflare.eval.reconstruct`, side by side, and the
   no-reference flare score of :mod:`edeflare.eval.flare_score` before (input) and
   after (each method), per sample and as the median over every window of
-  the split.
+  the split;
+- optionally, real recordings (``real=``) reconstructed by the bundled recurrent
+  reconstructor before and after each method (qualitative, as the paper's
+  real-data figures: there is no flare-free image to score against).
 
 Samples are chosen deterministically while the benchmark runs
 (:class:`~edeflare.eval.figures.FigureCollector`, the ``on_output`` hook of
@@ -37,6 +40,7 @@ from typing import Any
 
 import numpy as np
 from PIL import Image
+from tqdm import tqdm
 
 from .._version import __version__
 from ..deflare import Method
@@ -44,6 +48,7 @@ from ..errors import EventFileError
 from ..io._atomic import atomic_path
 from ..viz import grid, save_animation, save_image
 from .benchmark import BenchmarkResult, benchmark
+from .downstream import RealReconstruction, reconstruct_recording
 from .figures import (
     FIGURE_KINDS,
     GT,
@@ -292,6 +297,21 @@ def _write_downstream_animation(out: Path, result: BenchmarkResult) -> str | Non
     return "downstream.gif"
 
 
+def _write_real(
+    out: Path,
+    paths: Sequence[str | os.PathLike[str]],
+    methods: Mapping[str, str | Method],
+    progress: bool,
+) -> list[RealReconstruction]:
+    """``real_<name>.png`` for each real recording: reconstructions before and after."""
+    done = []
+    for path in tqdm(paths, desc="real recordings", disable=not progress or not paths):
+        r = reconstruct_recording(path, methods)
+        save_image(out / f"real_{Path(r.name).stem}.png", _fit(r.image, _GIF_MAX_WIDTH))
+        done.append(r)
+    return done
+
+
 def _nan_none(value: float) -> float | None:
     return None if math.isnan(value) else float(value)
 
@@ -436,6 +456,24 @@ def _page(
             '<p class="note">On the reconstructed images above (|L|):</p>',
             _score_table("flare-samples", cols, sample_rows),
         ]
+    if names.get("real"):
+        body += [
+            '<h2 id="real-title">Real recordings: reconstruction before and after</h2>',
+            '<p class="note">Each recording (its first 2 s at most) de-flared by every method, '
+            "and every stream reconstructed by the bundled recurrent reconstructor "
+            "(<code>edeflare.recon</code>) from the recording's start. Shown: the last "
+            "complete 20 ms window's input events, then each stream's image at that "
+            "window's end. Qualitative, as the paper's real-data figures: a real recording "
+            "has no flare-free image to score against.</p>",
+        ]
+        for r in names["real"]:
+            png = f"real_{Path(r.name).stem}.png"
+            counts = ", ".join(f"{_e(k)} {v:,}" for k, v in r.events.items())
+            body.append(
+                f'<figure><a href="{_e(png)}"><img src="{_e(png)}" '
+                f'alt="reconstructions of {_e(r.name)}"></a>'
+                f"<figcaption>{_e(r.name)}: events per stream: {counts}.</figcaption></figure>"
+            )
     body.append(
         '<p class="note">Every number of this page is in <a href="results.json">'
         "results.json</a>. See the edeflare documentation (docs/report.md) for the "
@@ -478,6 +516,8 @@ def write_report(
     title: str = "edeflare benchmark report",
     progress: bool = True,
     downstream: bool | str | os.PathLike[str] = False,
+    real: Sequence[str | os.PathLike[str]] = (),
+    real_methods: Mapping[str, str | Method] | None = None,
 ) -> Path:
     """Write the HTML report folder; return the path of its ``index.html``.
 
@@ -503,6 +543,12 @@ def write_report(
     downstream : bool or path-like
         With a split folder: also score reconstructions (see
         :func:`edeflare.eval.benchmark.benchmark`); the page gets their table.
+    real : sequence of path-like
+        Real recordings (any readable format) to reconstruct before and after
+        de-flaring by ``real_methods`` (default: ``methods``, else
+        :data:`DEFAULT_METHODS`): one figure each, ``real_<name>.png``
+        (:func:`edeflare.eval.downstream.reconstruct_recording`; qualitative,
+        real recordings have no flare-free image).
 
     Examples
     --------
@@ -536,6 +582,9 @@ def write_report(
     out.mkdir(parents=True, exist_ok=True)
     names = _write_figures(out, figures) if figures is not None else {"gifs": []}
     names["downstream"] = _write_downstream_animation(out, result)
+    rows = real_methods if real_methods is not None else methods
+    rows = rows if rows is not None else {m: m for m in DEFAULT_METHODS}
+    names["real"] = _write_real(out, real, rows, progress)
     with atomic_path(out / "results.json") as tmp:
         tmp.write_text(_results_json(result, figures), encoding="utf-8")
     page = out / "index.html"
