@@ -1,4 +1,4 @@
-"""The default model on the real recordings, beside the previous default and the dv filters.
+"""The default model on the real recordings, beside an older model and the dv filters.
 
     python docs/figures/make_night_real.py docs/figures/night_real.png [--model W]
 
@@ -6,7 +6,7 @@ One picture per recording, ``night_real_<recording>.png`` beside OUT: three 10 m
 windows of the Prophesee Gen3 rotating light, three 20 ms windows of the DAVIS346
 lamps, the 8.8 ms Gen4.1 daytime street (no bright light: what a de-flarer should
 leave alone), one row each. Columns: the input, the default model (or
-``--model W``), the previous default (``eflare``), dv-processing's FastDecay and
+``--model W``), the older ``eflare``, dv-processing's FastDecay and
 BackgroundActivity filters (the ``dv`` extra). ON red, OFF blue.
 """
 
@@ -35,7 +35,7 @@ def main() -> None:
     columns = {
         "input": None,
         "default (night)": ("model", {"weights": args.model}),
-        "eflare (previous default)": ("model", {"weights": "eflare"}),
+        "eflare (older model)": ("model", {"weights": "eflare"}),
         "dv-fastdecay": ("dv-fastdecay", {}),
         "dv-bafilter": ("dv-bafilter", {}),
     }
