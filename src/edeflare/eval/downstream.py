@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import EdeflareError
-from ..events import EVENT_DTYPE
+from ..events import concat_events
 from ..recon.clips import centre_image, intensity_to_image
 from .flare_score import flare_geometry
 
@@ -210,7 +210,7 @@ def reconstruct_recording(
         raise EdeflareError(f"{path}: no events to reconstruct")
     start = window_start_for(first, window_us)
     chunks = [ev for _, ev in source.windows(window_us, end_us=start + max_span_us)]
-    events = np.concatenate(chunks) if chunks else np.zeros(0, EVENT_DTYPE)
+    events = concat_events(chunks)
     streams = {"input": events}
     for label, method in methods.items():
         m = method if isinstance(method, Method) else create_method(method)

@@ -35,6 +35,7 @@ from ..events import (
     SensorSize,
     check_events,
     check_sensor_size,
+    concat_events,
     iter_chunk_windows,
     window_start_for,
 )
@@ -322,7 +323,7 @@ class EventSource:
         parts = list(self.chunks())
         if not parts:
             return np.zeros(0, dtype=EVENT_DTYPE)
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+        return parts[0] if len(parts) == 1 else concat_events(parts)
 
     def windows(
         self,

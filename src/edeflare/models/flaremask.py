@@ -199,14 +199,15 @@ def event_features(
     """
     width, height = int(sensor_size[0]), int(sensor_size[1])
     h, w = -(-height // scale), -(-width // scale)
-    seen = _frames(width, height)[1]
+    seen = _frames(width, height)[2]
     counts = _cell_counts(
         events["t"], events["x"], events["y"], events["p"], int(window_start_us), int(window_us),
         int(bins), int(scale), h, w, seen, width,
     )  # fmt: skip
-    counts[:-1] = np.log1p(counts[:-1])
-    counts[-1] /= float(scale * scale)
-    return counts.astype(np.float32)
+    feats = counts.astype(np.float64)
+    feats[:-1] = np.log1p(feats[:-1])
+    feats[-1] /= float(scale * scale)
+    return feats.astype(np.float32)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -215,18 +216,18 @@ def _cell_counts(
 ):  # pragma: no cover - compiled
     """Events per (polarity, bin, cell), then pixels that fired per cell ``(2 bins + 1, h, w)``.
 
-    ``seen`` is a zeroed frame of the sensor's pixels, left zeroed.
+    ``seen`` is a zeroed ``uint8`` frame of the sensor's pixels (small: it stays in
+    cache), left zeroed.
     """
-    out = np.zeros((2 * bins + 1, h, w), np.float64)
+    out = np.zeros((2 * bins + 1, h, w), np.int32)
     for i in range(t.size):
         b = ((np.int64(t[i]) - t0) * bins) // window_us
         c = b + bins * (1 - np.int64(p[i] != 0))
         cy, cx = np.int64(y[i]) // scale, np.int64(x[i]) // scale
-        out[c, cy, cx] += 1.0
+        out[c, cy, cx] += 1
         pix = np.int64(y[i]) * width + x[i]
-        if seen[pix] == 0:
-            seen[pix] = 1
-            out[2 * bins, cy, cx] += 1.0
+        out[2 * bins, cy, cx] += 1 - seen[pix]
+        seen[pix] = 1
     for i in range(t.size):
         seen[np.int64(y[i]) * width + x[i]] = 0
     return out
@@ -239,8 +240,9 @@ def _cell_counts(
 _scratch = threading.local()
 
 
-def _frames(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two zeroed ``int32`` count frames of one thread, reused across windows.
+def _frames(width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Zeroed frames of one thread, reused across windows: two ``int32`` counts, one
+    ``uint8`` mark.
 
     The kernels leave them zeroed (they reset the pixels they touched): a fresh
     frame per window costs more in page faults than the counting itself.
@@ -248,7 +250,8 @@ def _frames(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     key = (int(width), int(height))
     if getattr(_scratch, "key", None) != key:
         _scratch.key = key
-        _scratch.frames = (np.zeros(key[0] * key[1], np.int32), np.zeros(key[0] * key[1], np.int32))
+        n = key[0] * key[1]
+        _scratch.frames = (np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.uint8))
     return _scratch.frames
 
 
@@ -370,7 +373,7 @@ def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np
     [[1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.0], [1.0, 0.0, 2.0, 0.0]]
     """
     width, height = int(sensor_size[0]), int(sensor_size[1])
-    on, total = _frames(width, height)
+    on, total, _ = _frames(width, height)
     counts = _pixel_counts(events["x"], events["y"], events["p"], on, total, width, height)
     return np.log1p(counts.astype(np.float64))
 
@@ -416,7 +419,7 @@ def event_keep_mask(
         if sensor_size is None:
             raise ValueError("the per-pixel refinement needs the sensor size")
         width, height = int(sensor_size[0]), int(sensor_size[1])
-        on, total = _frames(width, height)
+        on, total, _ = _frames(width, height)
         w_in, b_in, gain, w_out, b_out = (
             np.ascontiguousarray(pixel_params[k], dtype=np.float64)
             for k in ("w_in", "b_in", "gain", "w_out", "b_out")

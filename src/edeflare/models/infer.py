@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from ..errors import EdeflareError
-from ..events import EVENT_DTYPE, SensorSize, check_events
+from ..events import EVENT_DTYPE, SensorSize, check_events, select_events
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
@@ -349,7 +349,7 @@ class ModelDeflarer:
                 pixel_params=params,
                 sensor_size=sensor_size,
             )
-            yield start, events[keep]
+            yield start, select_events(events, keep)
 
     def _run(
         self,
