@@ -154,7 +154,7 @@ class ModelDeflarer:
     runtime : {"auto", "torch", "onnx"}
         What runs the network: ``"auto"`` is ONNX Runtime for ``.onnx`` files
         and for mask models on CPU where ``onnx`` and ``onnxruntime`` are
-        installed (``benchmarks/bench_realtime.py``: 1.2-1.9x faster end to
+        installed (``benchmarks/bench_realtime.py``: 1.1-1.8x faster end to
         end), torch otherwise; ``"onnx"`` on a ``.safetensors`` file exports
         the network (in memory, once per sensor size) and runs it with ONNX
         Runtime. Encoding and decoding are the same code for both.
