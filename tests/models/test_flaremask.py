@@ -127,3 +127,23 @@ def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():
     assert f[4].tolist() == [1, 4, 1, 0]
     assert f[5].tolist() == [1, 0, 5, 1]  # the 5 events of (5, 5) beside; (8, 5) 2 away: the ring
     assert f[6].tolist() == [1, 0, 0, 1]  # (6, 5) in its ring; (5, 5) 3 away: outside
+
+
+def test_events_outside_the_window_or_the_sensor_are_refused_not_read_out_of_bounds():
+    from edeflare.models.flaremask import event_pixel_features
+
+    lg = np.zeros((16, 2, 2), np.float32)
+    late = make_events([5, 20_000], [1, 1], [1, 1], [1, 1])  # t = 20 000: the next window
+    with pytest.raises(ValueError, match=r"event 1 \(t=20000.*outside the window \[0, 20000\)"):
+        event_keep_mask(lg, late, 0, 20_000, 8)
+    with pytest.raises(ValueError, match="outside the window"):
+        event_features(late, (16, 16), 0, 20_000, 8, 8)
+    off = make_events([5, 6], [1, 16], [1, 1], [1, 1])  # x = 16 on a 16-pixel-wide sensor
+    with pytest.raises(ValueError, match="16x16 sensor"):
+        event_features(off, (16, 16), 0, 20_000, 8, 8)
+    with pytest.raises(ValueError, match="16x16 sensor"):
+        event_pixel_features(off, (16, 16))
+    params = _pixel_net().pixel_params()
+    with pytest.raises(ValueError, match="16x16 sensor"):
+        event_keep_mask(lg, off, 0, 20_000, 8, pixel_params=params, sensor_size=(16, 16))
+    assert event_keep_mask(lg, off, 0, 20_000, 8).shape == (2,)  # no frame: clipped sampling

@@ -199,6 +199,7 @@ def event_features(
     """
     width, height = int(sensor_size[0]), int(sensor_size[1])
     h, w = -(-height // scale), -(-width // scale)
+    _check_inside(events, window_start_us, window_us, width, height)
     seen = _frames(width, height)[2]
     counts = _cell_counts(
         events["t"], events["x"], events["y"], events["p"], int(window_start_us), int(window_us),
@@ -208,6 +209,30 @@ def event_features(
     feats[:-1] = np.log1p(feats[:-1])
     feats[-1] /= float(scale * scale)
     return feats.astype(np.float32)
+
+
+@numba.njit(cache=True, nogil=True)
+def _first_outside(t, x, y, t0, window_us, width, height):  # pragma: no cover - compiled
+    """Index of the first event outside the window or the sensor, else -1."""
+    for i in range(t.size):
+        if t[i] < t0 or t[i] - t0 >= window_us or x[i] >= width or y[i] >= height:
+            return i
+    return -1
+
+
+def _check_inside(
+    events: np.ndarray, start_us: int, window_us: int, width: int, height: int
+) -> None:
+    """The compiled kernels index frames without bounds checks: refuse what would overflow."""
+    i = _first_outside(
+        events["t"], events["x"], events["y"], int(start_us), int(window_us), width, height
+    )
+    if i >= 0:
+        e = events[i]
+        raise ValueError(
+            f"event {i} (t={int(e['t'])}, x={int(e['x'])}, y={int(e['y'])}) lies outside the "
+            f"window [{start_us}, {start_us + window_us}) us or the {width}x{height} sensor"
+        )
 
 
 @numba.njit(cache=True, nogil=True)
@@ -373,6 +398,9 @@ def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np
     [[1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.0], [1.0, 0.0, 2.0, 0.0]]
     """
     width, height = int(sensor_size[0]), int(sensor_size[1])
+    x, y = events["x"], events["y"]
+    if events.size and (int(x.max()) >= width or int(y.max()) >= height):
+        raise ValueError(f"events lie outside the {width}x{height} sensor")
     on, total, _ = _frames(width, height)
     counts = _pixel_counts(events["x"], events["y"], events["p"], on, total, width, height)
     return np.log1p(counts.astype(np.float64))
@@ -424,6 +452,9 @@ def event_keep_mask(
             np.ascontiguousarray(pixel_params[k], dtype=np.float64)
             for k in ("w_in", "b_in", "gain", "w_out", "b_out")
         )
+    # the refinement counts into sensor-sized frames; the logits are sampled clipped
+    bounds = (width, height) if pixel_params is not None else (1 << 31, 1 << 31)
+    _check_inside(events, window_start_us, window_us, *bounds)
     v = _event_logits(
         events["t"],
         events["x"],
