@@ -347,6 +347,14 @@ def test_real_recordings_are_reconstructed_before_and_after_each_method(built, t
     assert image.shape[1] >= 4 * SIZE[0]  # input events, then input, raw and pfd-b
     assert main([*argv, "--real", str(recording)]) == 1
     assert "--real shows recordings in the HTML report" in capsys.readouterr().err
+    twin = tmp_path / "elsewhere" / recording.name  # the same name in another folder
+    twin.parent.mkdir()
+    write_dsec_groups(twin, {"events": scene.clean}, SIZE, SPAN)
+    again = tmp_path / "html2"
+    assert main([*argv, "--html", str(again), "--real", str(recording), str(twin)]) == 0
+    text = (again / "index.html").read_text(encoding="utf-8")
+    assert 'src="real_night drive.png"' in text and 'src="real_night drive_2.png"' in text
+    assert f"input {scene.clean.size:,}," in text  # the twin's own figure and counts
 
 
 def test_reconstruct_recording_on_a_real_flare_recording(real_data):

@@ -302,13 +302,19 @@ def _write_real(
     paths: Sequence[str | os.PathLike[str]],
     methods: Mapping[str, str | Method],
     progress: bool,
-) -> list[RealReconstruction]:
-    """``real_<name>.png`` for each real recording: reconstructions before and after."""
-    done = []
+) -> list[tuple[str, RealReconstruction]]:
+    """``real_<name>.png`` for each real recording (``real_<name>_<k>.png`` for a name
+    seen before): its figure name and its reconstructions before and after."""
+    done: list[tuple[str, RealReconstruction]] = []
     for path in tqdm(paths, desc="real recordings", disable=not progress or not paths):
         r = reconstruct_recording(path, methods)
-        save_image(out / f"real_{Path(r.name).stem}.png", _fit(r.image, _GIF_MAX_WIDTH))
-        done.append(r)
+        png = f"real_{Path(r.name).stem}.png"
+        taken = {name for name, _ in done}
+        k = 2
+        while png in taken:
+            png, k = f"real_{Path(r.name).stem}_{k}.png", k + 1
+        save_image(out / png, _fit(r.image, _GIF_MAX_WIDTH))
+        done.append((png, r))
     return done
 
 
@@ -466,8 +472,7 @@ def _page(
             "window's end. Qualitative, as the paper's real-data figures: a real recording "
             "has no flare-free image to score against.</p>",
         ]
-        for r in names["real"]:
-            png = f"real_{Path(r.name).stem}.png"
+        for png, r in names["real"]:
             counts = ", ".join(f"{_e(k)} {v:,}" for k, v in r.events.items())
             body.append(
                 f'<figure><a href="{_e(png)}"><img src="{_e(png)}" '
