@@ -150,7 +150,10 @@ def kill_at_random_moments(argv: list[str], out: Path, reference: Path, seeds: r
     expected = tree_bytes(reference)
     killed = 0
     for seed in seeds:
-        shutil.rmtree(out, ignore_errors=True) if out.is_dir() else out.unlink(missing_ok=True)
+        if out.is_dir():
+            shutil.rmtree(out)
+        else:
+            out.unlink(missing_ok=True)
         moment = np.random.default_rng(seed).uniform(0.0, wall)
         child = subprocess.Popen(
             [sys.executable, "-m", "edeflare", *argv],

@@ -196,6 +196,7 @@ class ModelDeflarer:
             raise EdeflareError(f"{weights}: an ONNX file runs with runtime 'onnx', not 'torch'")
         self.device = _device(device)
         self._onnx: dict[tuple[int, int], OnnxNetwork] = {}
+        self._warm: set[tuple[int, int]] = set()
         if is_onnx:
             exported = OnnxNetwork(weights, device=str(self.device))
             if exported.graph == GRAPH_MASK and self.device.type == "cpu":  # see _torch_threads
@@ -387,7 +388,11 @@ class ModelDeflarer:
     def warm_up(self, sensor_size: SensorSize) -> None:
         """Run one batch of tiny windows through the whole path, so the first real one
         does not pay for loading compiled kernels and preparing the network's
-        layers for this shape (about 0.5 s on CPU): start-up, not latency."""
+        layers for this shape (about 0.5 s on CPU): start-up, not latency. Once
+        per sensor size."""
+        size = (int(sensor_size[0]), int(sensor_size[1]))
+        if size in self._warm:
+            return
         batch = []
         for k in range(self.batch_windows):
             ev = np.zeros(1, dtype=EVENT_DTYPE)  # one event at pixel (0, 0)
@@ -395,6 +400,7 @@ class ModelDeflarer:
             batch.append((k * self.window_us, ev))
         for _ in self.windows(batch, sensor_size):
             pass
+        self._warm.add(size)
 
     def __call__(self, events: np.ndarray, sensor_size: SensorSize, start_us: int) -> np.ndarray:
         """De-flare one window starting at ``start_us``."""
