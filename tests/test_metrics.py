@@ -17,6 +17,7 @@ from edeflare.eval.metrics import (
     f1_score,
     f1_scores,
     gaussian_distance,
+    keep_only_oracle,
     mse,
     nearest_distances,
     normalize_events,
@@ -204,3 +205,47 @@ def test_segment_metrics_validate_window_and_sensor():
 
 def test_metric_names_in_table_order():
     assert METRICS == ("chamfer", "gaussian", "mse", "pmse_2", "pmse_4", "r_f1", "t_f1", "tp_f1")
+
+
+def test_keep_only_oracle_keeps_what_lies_near_the_ground_truth():
+    rng = np.random.default_rng(3)
+    n = 4000
+    gt = make_events(
+        np.sort(rng.integers(0, 60_000, n)),
+        rng.integers(0, 64, n),
+        rng.integers(0, 48, n),
+        rng.integers(0, 2, n),
+    )
+    flare = make_events(
+        np.sort(rng.integers(0, 60_000, 500)),
+        np.full(500, 63),
+        rng.integers(0, 48, 500),
+        np.ones(500, int),
+    )
+    both = np.concatenate([gt, flare])
+    order = np.argsort(both["t"], kind="stable")
+    inp, is_flare = both[order], np.r_[np.zeros(n, bool), np.ones(500, bool)][order]
+    keep = keep_only_oracle(inp, gt, (64, 48), max_distance=2.0)
+    # the ground truth's own events are at distance 0: all kept
+    assert keep[~is_flare].all()
+    # what is kept is within 2 units of the ground truth, so its Chamfer is below 2,
+    # and the dropped events are all farther
+    kept, dropped = inp[keep], inp[~keep]
+    for s in (0, 20_000, 40_000):
+        w = (kept["t"] >= s) & (kept["t"] < s + 20_000)
+        g = gt[(gt["t"] >= s) & (gt["t"] < s + 20_000)]
+        assert chamfer_distance(g, kept[w], (64, 48), s, 20_000) < 2.0
+        wd = (dropped["t"] >= s) & (dropped["t"] < s + 20_000)
+        if wd.any():
+            assert nearest_distances(g, dropped[wd], (64, 48), s, 20_000).min() >= 2.0
+    assert 0 < (~keep).sum() <= 500
+
+
+def test_keep_only_oracle_empty_and_window_alignment():
+    gt = make_events([19_999], [5], [5], [1])
+    inp = make_events([19_999, 20_000], [5, 5], [5, 5], [1, 1])  # same place, next window
+    assert keep_only_oracle(inp, gt, (16, 16)).tolist() == [True, False]
+    assert keep_only_oracle(inp, gt[:0], (16, 16)).tolist() == [False, False]
+    assert keep_only_oracle(inp[:0], gt, (16, 16)).size == 0
+    with pytest.raises(EventsError, match="window_us"):
+        keep_only_oracle(inp, gt, (16, 16), window_us=0)

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import EventsError
-from ..events import SensorSize, check_events, check_sensor_size
+from ..events import SensorSize, check_events, check_sensor_size, window_start_for
 from ..voxel import encode_polarity
 
 __all__ = [
@@ -47,6 +47,7 @@ __all__ = [
     "f1_score",
     "f1_scores",
     "gaussian_distance",
+    "keep_only_oracle",
     "mse",
     "nearest_distances",
     "normalize_events",
@@ -160,6 +161,60 @@ def event_distances(
         events_gt, events_pred, sensor_size, window_start_us, window_us, workers=workers
     )
     return float(d.mean()), float(np.mean(-np.expm1(-(d * d) / sigma)))
+
+
+def keep_only_oracle(
+    events_in: np.ndarray,
+    events_gt: np.ndarray,
+    sensor_size: SensorSize,
+    *,
+    window_us: int = 20_000,
+    max_distance: float = 2.0,
+    workers: int = -1,
+) -> np.ndarray:
+    """Which input events lie within ``max_distance`` of a ground-truth event of their window.
+
+    A reference for paired test sets: ``events_in[mask]`` is what a de-flarer that
+    only deletes events (the ``mask`` presets, the filters) would output if it knew
+    the ground truth, so its metrics bound what deleting can reach. Distances are
+    those of :func:`nearest_distances` (normalised space: 1 unit is 1 % of the
+    window, the width or the height; polarities 100 apart) in aligned windows of
+    ``window_us`` starting at the window of the earlier first event, as
+    :func:`edeflare.eval.evaluate.evaluate_streams` scores them. Windows without
+    ground truth keep nothing.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean mask over ``events_in``.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> gt = make_events([100], [10], [10], [1])
+    >>> inp = make_events([100, 100, 100, 25_000], [11, 40, 10, 10], [10, 10, 10, 10], [1, 1, 0, 1])
+    >>> # 1 px right (1 unit on 101x101): kept; 30 px right, the other polarity, the
+    >>> # next window (no ground truth there): dropped
+    >>> keep_only_oracle(inp, gt, (101, 101)).tolist()
+    [True, False, False, False]
+    """
+    _check_window(0, window_us)
+    if events_in.size == 0 or events_gt.size == 0:
+        return np.zeros(events_in.size, dtype=bool)
+    start = window_start_for(min(int(events_in["t"][0]), int(events_gt["t"][0])), window_us)
+    t_in, t_gt = events_in["t"].astype(np.int64), events_gt["t"].astype(np.int64)
+    end = int(t_in[-1]) + 1
+    keep = np.zeros(events_in.size, dtype=bool)
+    for s in range(start, end, int(window_us)):
+        a, b = np.searchsorted(t_in, [s, s + window_us])
+        c, d = np.searchsorted(t_gt, [s, s + window_us])
+        if a == b or c == d:
+            continue
+        dist = nearest_distances(
+            events_gt[c:d], events_in[a:b], sensor_size, s, window_us, workers=workers
+        )
+        keep[a:b] = dist < max_distance
+    return keep
 
 
 def chamfer_distance(

@@ -1,0 +1,239 @@
+"""The targets of issues "Real flare" (13) and "Downstream" (17), measured in one run.
+
+Prints one table per target, each row with the requirement, what was measured and
+whether it is met, and writes ``results/flare_targets.json``:
+
+1. **The annotated real set** (``../shared/data/real``, the bundled annotations):
+   flare removed >= 80 %, light kept >= 90 %, and a combined score above every
+   baseline's (voxel, EFR, PFD-A, PFD-B and the dv-processing filters).
+2. **eflare-r-sim** (640x480, never trained on): better than the raw input and every
+   baseline on all eight metrics, Chamfer at least 35 % below the raw input's. A
+   *keep-only oracle* row (the input's events within 2 normalised units of a
+   ground-truth event: the best a de-flarer that only deletes events can hope for)
+   shows how far a target is from what deleting can reach.
+3. **The eflare-mini test split** (seed 9999, 20 sequences): no worse than the model
+   bundled when the issue was filed (``eflare``) on any metric.
+4. **Speed**: windows per second on that split, no slower than ``eflare``.
+5. **Downstream** (issue 17): the learned reconstruction of the de-flared stream
+   scores higher PSNR and SSIM against the clean frames than the raw input's, and
+   gains more than every baseline does (``--no-downstream`` skips it).
+
+Missing test sets are simulated into ``--data`` first (about 3 minutes on 2 cores);
+the whole run takes 15-25 minutes on 2 cores. Run::
+
+    python benchmarks/flare_targets.py [--model WEIGHTS] [--data DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from _common import report
+
+from edeflare.data.generate import generate_dataset
+from edeflare.data.recipe import RECIPES
+from edeflare.deflare import create_method
+from edeflare.eval.benchmark import benchmark
+from edeflare.eval.evaluate import combine_summaries, evaluate_events
+from edeflare.eval.metrics import HIGHER_IS_BETTER, METRICS, keep_only_oracle
+from edeflare.eval.score import bundled_lights, score_recording
+from edeflare.io.dsec import read_dsec
+from edeflare.io.sequence import list_sequences
+
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
+RECORDINGS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
+BASELINES = ("voxel", "efr", "pfd-a", "pfd-b", "dv-fastdecay", "dv-bafilter", "dv-knoise")
+ORACLE_UNITS = 2.0
+"""The keep-only oracle keeps input events this close to a ground-truth event (the
+metrics' normalised space: 1 unit = 1 % of the window's span, width or height)."""
+
+
+def _dataset(folder: Path, recipe_name: str, **changes: Any) -> list[Path]:
+    """The test files of ``folder``, simulated first when absent (resumes if cut short)."""
+    if not list_sequences(folder / "test") or not (folder / "manifest.json").is_file():
+        print(f"simulating {recipe_name} into {folder} ...", flush=True)
+        generate_dataset(RECIPES[recipe_name].replace(**changes), folder, workers=2)
+    return list_sequences(folder / "test")
+
+
+def _model(weights: str | None) -> Any:
+    return create_method("model", **({} if weights is None else {"weights": weights}))
+
+
+def _better(metric: str, a: float, b: float) -> bool:
+    return a > b if HIGHER_IS_BETTER[metric] else a < b
+
+
+def real_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
+    """Target 1: every method scored on each annotated recording."""
+    rows, verdicts = [], []
+    for rec in RECORDINGS:
+        path = args.real / rec
+        if not path.is_file():
+            print(f"skipped {rec}: not in {args.real}")
+            continue
+        params = {} if args.model is None else {"model": {"weights": args.model}}
+        result = score_recording(
+            path, ["raw", *BASELINES, "model"], lights=bundled_lights(rec), method_params=params
+        )
+        scores = {r.method: r for r in result.rows}
+        for r in result.rows:
+            rows.append(
+                {
+                    "recording": rec.split(".")[0],
+                    "method": r.method,
+                    "flare removed": r.flare_removed,
+                    "light kept": r.light_kept,
+                    "background kept": r.background_kept,
+                    "combined": r.combined,
+                }
+            )
+        model = scores["model"]
+        best = max(BASELINES, key=lambda m: scores[m].combined)
+        name = rec.split(".")[0]
+        verdicts += [
+            _verdict(
+                f"{name}: flare removed", ">= 0.80", model.flare_removed, model.flare_removed >= 0.8
+            ),
+            _verdict(f"{name}: light kept", ">= 0.90", model.light_kept, model.light_kept >= 0.9),
+            _verdict(
+                f"{name}: combined",
+                f"> {best} {scores[best].combined:.3f}",
+                model.combined,
+                model.combined > scores[best].combined,
+            ),
+        ]
+    return rows, verdicts
+
+
+def oracle_means(files: list[Path]) -> dict[str, float]:
+    """Means of the eight metrics of the keep-only oracle's output (see the docstring)."""
+    summaries = []
+    for path in files:
+        inp, size = read_dsec(path, "input")
+        gt, _ = read_dsec(path, "gt")
+        keep = keep_only_oracle(inp, gt, size, max_distance=ORACLE_UNITS)
+        summaries.append(evaluate_events(gt, inp[keep], size))
+    return dict(combine_summaries(summaries).means)
+
+
+def r_sim(args: argparse.Namespace) -> tuple[list[dict], list[dict], list[dict], list[dict]]:
+    """Targets 2 and 5: every method on eflare-r-sim, with the reconstruction scores."""
+    files = _dataset(args.data / "eflare-r-sim", "eflare-r-sim")
+    methods = {"raw": "raw", **{m: m for m in BASELINES}, "model": _model(args.model)}
+    result = benchmark(files, methods, downstream=not args.no_downstream, progress=True)
+    means = {m: s.means for m, s in result.evaluation.methods.items()}
+    means["keep-only oracle"] = oracle_means(files)
+    rows = [{"method": m, **v} for m, v in means.items()]
+    verdicts = []
+    for metric in METRICS:
+        others = {m: v[metric] for m, v in means.items() if m not in ("model", "keep-only oracle")}
+        worst = [m for m, v in others.items() if not _better(metric, means["model"][metric], v)]
+        verdicts.append(
+            _verdict(
+                f"eflare-r-sim: {metric}",
+                "better than raw and every baseline",
+                means["model"][metric],
+                not worst,
+                ", ".join(worst),
+            )
+        )
+    ratio = means["model"]["chamfer"] / means["raw"]["chamfer"]
+    oracle = means["keep-only oracle"]["chamfer"] / means["raw"]["chamfer"]
+    verdicts.append(
+        _verdict(
+            "eflare-r-sim: Chamfer / raw",
+            "<= 0.65",
+            ratio,
+            ratio <= 0.65,
+            f"keep-only oracle {oracle:.3f}",
+        )
+    )
+    down_rows, down_verdicts = [], []
+    if result.downstream:
+        d = result.downstream
+        down_rows = [{"stream": k, **v} for k, v in d.items()]
+        for metric in ("psnr", "ssim"):
+            rows_ = [m for m in d if m not in ("raw", "ground truth")]
+            gain = {m: d[m][metric] - d["raw"][metric] for m in rows_}
+            best = max((m for m in gain if m != "model"), key=gain.get)
+            down_verdicts += [
+                _verdict(
+                    f"downstream {metric}: model over raw", "> 0", gain["model"], gain["model"] > 0
+                ),
+                _verdict(
+                    f"downstream {metric}: gain over the best baseline's",
+                    f"> {best} {gain[best]:+.4f}",
+                    gain["model"],
+                    gain["model"] > gain[best],
+                ),
+            ]
+    return rows, verdicts, down_rows, down_verdicts
+
+
+def mini_split(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
+    """Targets 3 and 4: the default against ``eflare`` on the eflare-mini test split."""
+    files = _dataset(
+        args.data / "eflare-mini-test", "eflare-mini", sequences=20, test_sequences=20, seed=9999
+    )
+    methods = {"raw": "raw", "model": _model(args.model), "eflare": _model("eflare")}
+    result = benchmark(files, methods, progress=True)
+    means = {m: s.means for m, s in result.evaluation.methods.items()}
+    rows = [
+        {"method": m, **v, "windows/s": result.speed[m].windows_per_s} for m, v in means.items()
+    ]
+    verdicts = [
+        _verdict(
+            f"eflare-mini: {metric}",
+            f"no worse than eflare {means['eflare'][metric]:.4f}",
+            means["model"][metric],
+            not _better(metric, means["eflare"][metric], means["model"][metric]),
+        )
+        for metric in METRICS
+    ]
+    speed = result.speed["model"].windows_per_s / result.speed["eflare"].windows_per_s
+    verdicts.append(_verdict("speed: windows/s over eflare's", ">= 1", speed, speed >= 1.0))
+    return rows, verdicts
+
+
+def _verdict(target: str, requirement: str, measured: float, met: bool, note: str = "") -> dict:
+    value = round(float(measured), 4) if math.isfinite(measured) else None
+    return {
+        "target": target,
+        "requirement": requirement,
+        "measured": value,
+        "met": "yes" if met else "NO",
+        "note": note,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--model", help="weights of the 'model' row (default: the bundled one)")
+    parser.add_argument(
+        "--data",
+        type=Path,
+        default=Path("benchmarks/.data"),
+        help="where the simulated test sets are (simulated there if absent)",
+    )
+    parser.add_argument("--real", type=Path, default=REAL)
+    parser.add_argument("--no-downstream", action="store_true")
+    args = parser.parse_args()
+    real_rows, verdicts = real_set(args)
+    rsim_rows, rsim_verdicts, down_rows, down_verdicts = r_sim(args)
+    mini_rows, mini_verdicts = mini_split(args)
+    verdicts += rsim_verdicts + mini_verdicts + down_verdicts
+    if real_rows:
+        report("flare_targets_real", real_rows, list(real_rows[0]))
+    report("flare_targets_r_sim", rsim_rows, ["method", *METRICS])
+    report("flare_targets_mini", mini_rows, ["method", *METRICS, "windows/s"])
+    if down_rows:
+        report("flare_targets_downstream", down_rows, list(down_rows[0]))
+    report("flare_targets", verdicts, ["target", "requirement", "measured", "met", "note"])
+
+
+if __name__ == "__main__":
+    main()
