@@ -7,7 +7,11 @@ come out as dense as the optics test set's blurred discs and the Gen3 recording'
 arc, labelled to drop; the source, its 2 px glow, the street and the background
 activity are labelled to keep, as in eflare-night.
 
-    python experiments/dense-halo/gen_dense.py OUT [SEQUENCES]
+    python experiments/dense-halo/gen_dense.py OUT [SEQUENCES]            # d3's data
+    python experiments/dense-halo/gen_dense.py OUT [SEQUENCES] --solid    # d4's data
+
+``--solid``: survival log-uniform in [0.3, 1] at every distance (falloff 0) and a star
+filter in every sequence, seed 303: solid star arms like the optics test set's.
 """
 
 import sys
@@ -17,18 +21,27 @@ from edeflare.data.generate import generate_dataset
 from edeflare.data.recipe import RECIPES
 
 if __name__ == "__main__":
-    n = int(sys.argv[2]) if len(sys.argv) > 2 else 72
+    solid = "--solid" in sys.argv
+    args = [a for a in sys.argv[1:] if a != "--solid"]
+    n = int(args[1]) if len(args) > 1 else 72
     night = RECIPES["eflare-night"]
+    survival, falloff = ((0.3, 1.0), 0.0) if solid else ((0.1, 1.0), 1.0)
     sensing = night.config.sensing.__class__(
-        **{**night.config.sensing.__dict__, "survival": (0.1, 1.0), "falloff": 1.0}
+        **{**night.config.sensing.__dict__, "survival": survival, "falloff": falloff}
+    )
+    script = night.config.script
+    if solid:
+        script = script.__class__(**{**script.__dict__, "star_probability": 1.0})
+    config = night.config.__class__(
+        **{**night.config.__dict__, "sensing": sensing, "script": script}
     )
     recipe = night.replace(
-        name="eflare-dense-halo",
+        name="eflare-dense-halo-solid" if solid else "eflare-dense-halo",
         sequences=n,
         test_sequences=6,
-        seed=202,
-        config=night.config.__class__(**{**night.config.__dict__, "sensing": sensing}),
+        seed=303 if solid else 202,
+        config=config,
     )
     t = time.time()
-    generate_dataset(recipe, sys.argv[1], workers=2)
+    generate_dataset(recipe, args[0], workers=2)
     print("took", round(time.time() - t), "s")
