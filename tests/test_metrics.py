@@ -249,3 +249,7 @@ def test_keep_only_oracle_empty_and_window_alignment():
     assert keep_only_oracle(inp[:0], gt, (16, 16)).size == 0
     with pytest.raises(EventsError, match="window_us"):
         keep_only_oracle(inp, gt, (16, 16), window_us=0)
+    with pytest.raises(EventsError, match="not sorted"):
+        keep_only_oracle(inp[::-1].copy(), gt, (16, 16))
+    with pytest.raises(EventsError, match="out of range"):
+        keep_only_oracle(inp, gt, (4, 4))

@@ -188,6 +188,11 @@ def keep_only_oracle(
     numpy.ndarray
         Boolean mask over ``events_in``.
 
+    Raises
+    ------
+    EventsError
+        A stream that is not sorted in time, or lies off the sensor.
+
     Examples
     --------
     >>> from edeflare.events import make_events
@@ -199,6 +204,8 @@ def keep_only_oracle(
     [True, False, False, False]
     """
     _check_window(0, window_us)
+    check_events(events_in, sensor_size)
+    check_events(events_gt, sensor_size)
     if events_in.size == 0 or events_gt.size == 0:
         return np.zeros(events_in.size, dtype=bool)
     start = window_start_for(min(int(events_in["t"][0]), int(events_gt["t"][0])), window_us)
