@@ -3,8 +3,8 @@
 The eflare-night recipe with the sparse-sensing stage letting far more of the
 scattered light through: survival log-uniform in [0.1, 1] per sequence (eflare-night:
 [0.003, 0.2]), falloff 1 (eflare-night: 2). The halo and glare next to a light then
-come out as dense as the optics test set's blurred discs and the Gen3 recording's
-arc, labelled to drop; the source, its 2 px glow, the street and the background
+come out dense (meant to resemble the optics test set's blurred discs), labelled to
+drop; the source, its 2 px glow, the street and the background
 activity are labelled to keep, as in eflare-night.
 
     python experiments/dense-halo/gen_dense.py OUT [SEQUENCES]            # d3's data
