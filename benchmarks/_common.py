@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results"
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
+"""The real recordings (``../shared/data/real`` beside the clone)."""
 
 
 PEAK_MIB = r"""

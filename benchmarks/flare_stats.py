@@ -28,7 +28,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from _common import report
+from _common import REAL, report
 
 from edeflare.eval.flare_stats import RING_EDGES, flare_statistics, lights_from_events
 from edeflare.eval.score import bundled_lights, load_lights
@@ -37,7 +37,6 @@ from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
 from edeflare.viz import event_frame, grid, save_image
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 RECORDINGS = {  # file: short label of the figure
     "prophesee_gen3_rotating_light.raw": "real: Gen3 light",
     "davis346_flicker_lamps.aedat4": "real: DAVIS lamps",

@@ -31,7 +31,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from _common import report
+from _common import REAL, report
 
 from edeflare.data.generate import generate_dataset
 from edeflare.data.recipe import RECIPES
@@ -43,7 +43,6 @@ from edeflare.eval.score import bundled_lights, score_recording
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 RECORDINGS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
 BASELINES = ("voxel", "efr", "pfd-a", "pfd-b", "dv-fastdecay", "dv-bafilter", "dv-knoise")
 ORACLE_UNITS = 2.0
