@@ -15,6 +15,11 @@ middle time.
   the dense core's centre (median, then three times the mean of the events within
   35 px of it); a track through the centres at the windows' middle times, extended
   linearly to the recording's first and last event; one radius for the whole track.
+  Its response time (``response_us``): each pixel the blob's disc covers fires a train
+  (an OFF burst as the blob arrives, an ON burst as it leaves) whose last events come
+  after the disc has left the pixel, as the photoreceptor settles; ``response_us`` is
+  the 95th percentile over those pixels of the last event's delay after the disc left
+  (:func:`response_time`; the raster ``lights_gen3_pixel_trains.png`` shows the trains).
 - ``davis346_flicker_lamps.aedat4``: two fixed ceiling lamps, found on the whole
   recording's event density by ``edeflare.realworld.detect_light_source``.
 
@@ -39,7 +44,11 @@ from edeflare.eval.score import Lights, LightSource, classify_events
 from edeflare.realworld import detect_light_source
 from edeflare.viz import event_frame, grid, save_image
 
-DATE = "2026-11-23"
+# When each annotation was last changed (Gen3: the response time added).
+DATES = {
+    "prophesee_gen3_rotating_light.raw": "2026-11-25",
+    "davis346_flicker_lamps.aedat4": "2026-11-23",
+}
 COMMAND = (
     "python docs/figures/make_light_annotations.py --data ../shared/data/real "
     "--json-dir src/edeflare/assets/lights --figures docs/figures"
@@ -94,6 +103,91 @@ def gen3_track(events: np.ndarray, window_us: int = 1_000) -> tuple[np.ndarray, 
         "window_us": window_us,
     }
     return track, info
+
+
+def response_time(
+    events: np.ndarray, track: np.ndarray, r: float, quantile: float = 0.95
+) -> tuple[float, dict, list[np.ndarray]]:
+    """How long the pixels a moving disc covered keep firing after it has left them.
+
+    For each pixel whose distance ``m`` to the track is below ``r - 2`` px and which the
+    disc passes between 10 ms after the recording's start and 15 ms before its end:
+    the disc leaves it ``sqrt(r^2 - m^2) / v`` after its closest approach (``v`` the
+    blob's speed); its train is its events from 10 ms before the approach to 30 ms
+    after. Returns the ``quantile`` of (last event - exit), rounded up to 0.1 ms and
+    at least 0, the record, and the trains of 40 pixels (event times minus exit, and
+    polarities) for the figure.
+    """
+    tt = np.linspace(track[0, 0], track[-1, 0], 5_000)
+    tx, ty = (np.interp(tt, track[:, 0], track[:, k]) for k in (1, 2))
+    speed = float(np.hypot(np.diff(tx), np.diff(ty)).sum() / (tt[-1] - tt[0]))  # px/us
+    t = events["t"].astype(np.int64)
+    pix = events["y"].astype(np.int64) * (int(events["x"].max()) + 1) + events["x"]
+    order = np.lexsort((t, pix))
+    pix_s, t_s, p_s = pix[order], t[order], events["p"][order]
+    uniq, start, count = np.unique(pix_s, return_index=True, return_counts=True)
+    width = int(events["x"].max()) + 1
+    ux, uy = (uniq % width).astype(np.float64), (uniq // width).astype(np.float64)
+    nearest, dist = np.zeros(uniq.size, np.int64), np.full(uniq.size, np.inf)
+    for k in range(0, tt.size, 250):  # chunks bound the memory of the distance table
+        d = np.hypot(ux[:, None] - tx[None, k : k + 250], uy[:, None] - ty[None, k : k + 250])
+        j = d.argmin(1)
+        better = d[np.arange(uniq.size), j] < dist
+        nearest[better], dist[better] = j[better] + k, d[np.arange(uniq.size), j][better]
+    passed = tt[nearest]
+    chosen = np.nonzero(
+        (dist < r - 2) & (passed > track[0, 0] + 10_000) & (passed < track[-1, 0] - 15_000)
+    )[0]
+    delays, after, total, trains = [], 0, 0, []
+    for n, k in enumerate(chosen):
+        sl = slice(start[k], start[k] + count[k])
+        ts = t_s[sl]
+        keep = (ts > passed[k] - 10_000) & (ts < passed[k] + 30_000)
+        if not keep.any():
+            continue
+        exit_us = passed[k] + np.sqrt(r * r - dist[k] ** 2) / speed
+        rel = ts[keep] - exit_us
+        delays.append(rel[-1])
+        after += int((rel > 0).sum())
+        total += rel.size
+        if n % max(1, chosen.size // 40) == 0 and len(trains) < 40:
+            trains.append(np.c_[rel, p_s[sl][keep]])
+    q = float(np.quantile(delays, quantile))
+    response_us = max(0.0, float(np.ceil(q / 100.0) * 100.0))
+    record = {
+        "response_pixels": len(delays),
+        "response_events_after_exit_share": round(after / total, 4),
+        "response_last_event_after_exit_us_p50_p90_p95_p99": [
+            round(float(v)) for v in np.quantile(delays, [0.5, 0.9, 0.95, 0.99])
+        ],
+        "response_quantile": quantile,
+        "blob_speed_px_per_ms": round(speed * 1000, 2),
+    }
+    return response_us, record, trains
+
+
+def train_raster(
+    trains: list[np.ndarray], response_us: float, span_us: tuple[int, int] = (-6_000, 8_000)
+) -> np.ndarray:
+    """The pixels' trains as a raster: one row per pixel, time relative to the disc's exit.
+
+    ON red, OFF blue; black line: the exit; green line: ``response_us`` after it.
+    """
+    lo, hi = span_us
+    w, row = 700, 8
+    img = Image.new("RGB", (w, row * len(trains) + 24), "white")
+    draw = ImageDraw.Draw(img)
+    col = lambda v: int((v - lo) / (hi - lo) * (w - 1))  # noqa: E731
+    for v, colour in ((0, (0, 0, 0)), (response_us, (0, 160, 0))):
+        draw.line([col(v), 0, col(v), row * len(trains)], fill=colour, width=2)
+    for i, tr in enumerate(trains):
+        for rel, p in tr:
+            if lo <= rel < hi:
+                x, y = col(rel), i * row + row // 2
+                draw.rectangle([x - 1, y - 2, x + 1, y + 2], fill=(220, 0, 0) if p else (0, 0, 220))
+    for v in range(lo, hi + 1, 2_000):
+        draw.text((col(v) + 2, row * len(trains) + 6), f"{v / 1000:+g} ms", fill=(0, 0, 0))
+    return np.asarray(img)
 
 
 def checks(events: np.ndarray, size: tuple[int, int], lights: Lights, n_src: int) -> dict:
@@ -155,6 +249,9 @@ def overlay(events, size, lights, t0, window_us, scale) -> np.ndarray:
         cx, cy, r = (float(v[0]) for v in s.at(mid))
         outer = lights.halo_factor * r if s.halo_outer_px is None else s.halo_outer_px
         circles = [(cx, cy, r, (0, 160, 0)), (cx, cy, outer, (240, 140, 0))]
+        if s.response_us:  # the disc response_us ago: the comet's tail
+            px, py, pr = (float(v[0]) for v in s.at(mid - s.response_us))
+            circles.append((px, py, pr, (0, 90, 0)))
         if s.ghost:
             gr = lights.ghost_factor * r if s.ghost_radius_px is None else s.ghost_radius_px
             circles.append((w - 1 - cx, h - 1 - cy, gr, (150, 0, 200)))
@@ -179,8 +276,15 @@ def main(argv: list[str] | None = None) -> int:
     cy = np.interp(events["t"], track[:, 0], track[:, 2])
     r = radius_from_profile(np.hypot(events["x"] - cx, events["y"] - cy))
     rows = [[round(float(a)), round(float(b), 1), round(float(c), 1), r] for a, b, c in track]
+    response_us, response_info, trains = response_time(events, track, r)
+    info = {**info, **response_info}
+    save_image(args.figures / "lights_gen3_pixel_trains.png", train_raster(trains, response_us))
     gen3 = Lights(
-        (LightSource.track(rows, name="rotating blob", ghost_radius_px=r),),
+        (
+            LightSource.track(
+                rows, name="rotating blob", ghost_radius_px=r, response_us=response_us
+            ),
+        ),
         note="blob moving on a circle in the dark; ghost disc as large as the blob (its "
         "reflection passes within 90 px of the blob); background: hot pixels only, not scored",
         score_background=False,
@@ -214,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         doc = {
             "recording": rec,
             "sensor_size": list(sz),
-            "date": DATE,
+            "date": DATES[rec],
             "method": COMMAND,
             "checks": {**found_checks, **extra},
             **lights.to_dict(),

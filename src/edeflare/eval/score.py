@@ -5,7 +5,10 @@ A real recording has no flare-free twin, but its light sources are known
 put, with its own timestamp, in one region of each source's geometry at that
 time (sources may move):
 
-- **light**: inside the source (disc of radius ``r``, or polygon);
+- **light**: inside the source (disc of radius ``r``, or polygon); for a
+  source with a ``response_us`` (a moving light's pixels go on firing after
+  it has passed, for as long as their photoreceptors take to settle), inside
+  any of its discs of the last ``response_us``: the comet its disc sweeps;
 - **rim**: within ``margin_px`` outside it; counted nowhere (the source's
   edge is neither clearly light nor clearly flare);
 - **halo**: the annulus ``r + margin_px < d <= halo_factor * r`` (``d`` the
@@ -101,6 +104,11 @@ class LightSource:
     the source is absent), ``points`` a polygon's vertices.
     ``halo_outer_px`` / ``ghost_radius_px`` override the factors of
     :class:`Lights`; ``ghost=False`` gives the source no ghost region.
+    ``response_us`` (moving sources) is how long the sensor's pixels keep
+    firing after the source has left them: an event belongs to the light
+    (and the rim and halo are measured from it) if it lies in any of the
+    source's discs of the last ``response_us`` before it, not only the
+    current one (:func:`classify_events`).
 
     Examples
     --------
@@ -116,6 +124,7 @@ class LightSource:
     halo_outer_px: float | None = None
     ghost_radius_px: float | None = None
     ghost: bool = True
+    response_us: float = 0.0
 
     @classmethod
     def circle(cls, cx: float, cy: float, r: float, **options: Any) -> LightSource:
@@ -185,7 +194,39 @@ class LightSource:
             d["ghost_radius_px"] = self.ghost_radius_px
         if not self.ghost:
             d["ghost"] = False
+        if self.response_us:
+            d["response_us"] = self.response_us
         return d
+
+    def distance(self, x: np.ndarray, y: np.ndarray, t_us: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``(dist, cx, cy, r)``: each point's distance outside the source at its time.
+
+        ``dist`` is 0 inside, ``inf`` where the source is absent; with a
+        ``response_us``, the least distance outside the discs of the times
+        ``t - response_us .. t`` (sampled in 32 steps). ``cx, cy, r`` are the
+        disc at ``t`` (a polygon's: its equal-area disc).
+
+        Examples
+        --------
+        >>> s = LightSource.track([[0, 0, 0, 2], [10, 10, 0, 2]], response_us=5)
+        >>> o = np.zeros(2)
+        >>> s.distance(np.array([5.0, 0.0]), o, np.array([10, 10]))[0].tolist()  # 5 px behind
+        [0.0, 3.0]
+        """
+        cx, cy, r = self.at(t_us)
+        present = np.isfinite(cx)
+        if self.kind == "polygon":
+            from ..realworld.geometry import Polygon
+
+            return (Polygon(self.points).distance(x, y), cx, cy, r)
+        dist = np.where(present, np.maximum(0.0, np.hypot(x - cx, y - cy) - r), np.inf)
+        if self.response_us > 0 and self.kind in ("track", "steps"):
+            t = np.asarray(t_us, dtype=np.float64)
+            for k in range(1, 33):
+                px, py, pr = self.at(t - self.response_us * k / 32)
+                d = np.maximum(0.0, np.hypot(x - px, y - py) - pr)
+                dist = np.fmin(dist, np.where(np.isfinite(px), d, np.inf))
+        return (dist, cx, cy, r)
 
 
 def _rows(rows: Any, what: str) -> np.ndarray:
@@ -261,7 +302,8 @@ class Lights:
         }
 
 
-_SOURCE_KEYS = {"circle", "polygon", "track", "name", "halo_outer_px", "ghost_radius_px", "ghost"}
+_SOURCE_KEYS = {"circle", "polygon", "track", "name", "halo_outer_px", "ghost_radius_px", "ghost",
+                "response_us"}  # fmt: skip
 _TOP_KEYS = {"sources", "margin_px", "halo_factor", "ghost_factor", "note", "sensor_size",
              "recording", "date", "method", "checks", "score_background"}  # fmt: skip
 
@@ -276,6 +318,13 @@ def _source_from_json(item: Any) -> LightSource:
     if len(shapes) != 1:
         raise ParameterError("needs exactly one of 'circle', 'polygon', 'track'")
     options: dict[str, Any] = {"name": str(item.get("name", ""))}
+    if "response_us" in item:
+        v = item["response_us"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < math.inf:
+            raise ParameterError(f"response_us must be a number >= 0, got {v!r}")
+        if "track" not in item:
+            raise ParameterError("response_us applies to a track (a moving source) only")
+        options["response_us"] = float(v)
     for key in ("halo_outer_px", "ghost_radius_px"):
         if key in item:
             v = item[key]
@@ -321,9 +370,10 @@ def load_lights(path: str | os.PathLike[str], sensor_size: SensorSize | None = N
     ``method``, ``checks``). Each source is one of ``{"circle": [x, y, r]}``,
     ``{"polygon": [[x, y], ...]}`` or ``{"track": [[t_us, x, y, r], ...]}``
     (linear in time, held before its first and after its last row), with
-    optional ``name``, ``halo_outer_px``, ``ghost_radius_px`` and ``ghost``
-    (false: no ghost region). Pixel coordinates: pixel ``(x, y)`` has its
-    centre at ``(x, y)``.
+    optional ``name``, ``halo_outer_px``, ``ghost_radius_px``, ``ghost``
+    (false: no ghost region) and, for a track, ``response_us`` (how long its
+    pixels fire on after it has passed; see :class:`LightSource`). Pixel
+    coordinates: pixel ``(x, y)`` has its centre at ``(x, y)``.
 
     Raises
     ------
@@ -524,18 +574,14 @@ def classify_events(events: np.ndarray, lights: Lights, sensor_size: SensorSize)
     halo = np.zeros(n, dtype=bool)
     ghost = np.zeros(n, dtype=bool)
     for s in lights.sources:
-        cx, cy, r = s.at(t)
+        dist, cx, cy, r = s.distance(x, y, t)
         present = np.isfinite(cx)
         if s.kind == "polygon":
             from ..realworld.geometry import Polygon
 
-            poly = Polygon(s.points)
-            inside = poly.contains(x, y)
-            dist = poly.distance(x, y)  # 0 inside
+            inside = Polygon(s.points).contains(x, y)
         else:
-            d = np.hypot(x - cx, y - cy)
-            inside = present & (d <= r)
-            dist = np.where(present, np.maximum(0.0, d - r), np.inf)
+            inside = dist <= 0.0
         outer = s.halo_outer_px if s.halo_outer_px is not None else lights.halo_factor * r
         light |= inside
         near |= present & (dist <= lights.margin_px)
