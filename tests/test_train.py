@@ -252,6 +252,22 @@ def test_data_loader_workers_and_precompute_give_the_same_model(dataset, tmp_pat
     assert all(torch.equal(wa[k], wb[k]) and torch.equal(wa[k], wc[k]) for k in wa)
 
 
+def test_sequences_of_several_sensor_sizes_train_with_a_crop(dataset, tmp_path):
+    rng = np.random.default_rng(8)
+    big = (24, 20)
+    for k in range(2):  # two more training sequences on a larger sensor
+        gt = random_events(rng, 300, big, t0=0, span_us=60_000)
+        streams = {"input": merge_events(gt, random_events(rng, 100, big, 0, 60_000)), "gt": gt}
+        span = {"t_start_us": 0, "t_end_us": 60_000}
+        write_dsec_groups(dataset / "train" / f"big{k}.h5", streams, big, span)
+    paths = _paths(dataset, "train")
+    with pytest.raises(EdeflareError, match=r"several sensor sizes \(16x12, 24x20\): give a crop "
+                       r"no larger than 12x16"):  # fmt: skip
+        train(_config(), paths, tmp_path / "a", progress=False)
+    final = train(_config(crop=(8, 12), iterations=4), paths, tmp_path / "b", progress=False)
+    assert final.is_file() and len(_log(tmp_path / "b" / "train_log.csv")) == 4
+
+
 def test_too_little_data_is_a_clear_error(dataset, tmp_path):
     with pytest.raises(EdeflareError, match="fewer than one global batch"):
         train(_config(batch_size=64), _paths(dataset, "train"), tmp_path / "x", progress=False)

@@ -347,7 +347,12 @@ def _validate(
                 out, dataset.input_events(int(i)), ref.start_us, config.window_us, rng=int(i)
             )
             m = segment_metrics(
-                gt, pred, dataset.sensor_size, ref.start_us, config.window_us, bins=config.bins
+                gt,
+                pred,
+                ref.sensor_size or dataset.sensor_size,
+                ref.start_us,
+                config.window_us,
+                bins=config.bins,
             )
             sums["r_f1"] += m.r_f1
             if not math.isnan(m.chamfer):
@@ -396,6 +401,12 @@ def train(
         seed=config.seed,
         precompute=config.precompute,
     )
+    if len(train_set.sizes) > 1 and config.crop is None:
+        sizes = ", ".join(f"{w}x{h}" for w, h in train_set.sizes)
+        raise EdeflareError(
+            f"the training sequences have several sensor sizes ({sizes}): give a crop no "
+            f"larger than {train_set.sensor_size[1]}x{train_set.sensor_size[0]} (--crop HxW)"
+        )
     val_set = (
         PairedWindows(val_paths, window_us=config.window_us, bins=config.bins)
         if val_paths

@@ -76,10 +76,30 @@ def test_bad_datasets(tmp_path, rng):
         list_sequences(tmp_path / "empty")
     _sequence(tmp_path / "a.h5", rng, size=(16, 12))
     _sequence(tmp_path / "b.h5", rng, size=(20, 12))
-    with pytest.raises(EventFileError, match="differs"):
-        PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"])
-    with pytest.raises(ValueError, match="exceeds the sensor"):
+    with pytest.raises(EventFileError, match=r"sensor size \(20, 12\) differs from \(16, 12\)"):
+        sequence_windows([tmp_path / "a.h5", tmp_path / "b.h5"])
+    with pytest.raises(ValueError, match="exceeds the sensor 16x12"):
         PairedWindows([tmp_path / "a.h5"], crop=(13, 8))
+    with pytest.raises(ValueError, match="exceeds the smallest of the sensors' 16x12"):
+        PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"], crop=(8, 17))
+
+
+def test_sequences_of_several_sensor_sizes(tmp_path, rng):
+    _sequence(tmp_path / "a.h5", rng, size=(16, 12))
+    b, _ = _sequence(tmp_path / "b.h5", rng, size=(20, 10))
+    ds = PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"], crop=(8, 8))
+    assert ds.sizes == [(16, 12), (20, 10)] and ds.sensor_size == (16, 10)
+    n_a = sum(w.path.name == "a.h5" for w in ds.windows)
+    # each window is encoded on its own sensor, then cropped to one shape
+    assert ds.grids(0)[0].shape == (8, 12, 16) and ds.grids(n_a)[0].shape == (8, 10, 20)
+    sel = (b["t"] >= ds.windows[n_a].start_us) & (b["t"] < ds.windows[n_a].start_us + 20_000)
+    np.testing.assert_array_equal(
+        ds.grids(n_a)[0], encode(b[sel], (20, 10), ds.windows[n_a].start_us, 20_000)
+    )
+    assert {ds.item(i, 0)[0].shape for i in range(len(ds))} == {(1, 8, 8, 8)}
+    cached = PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"], crop=(8, 8), precompute=True)
+    for i in range(len(ds)):
+        np.testing.assert_array_equal(cached.item(i, 2)[0], ds.item(i, 2)[0])
 
 
 def test_precomputed_grids_equal_on_the_fly(tmp_path, rng):
@@ -89,7 +109,7 @@ def test_precomputed_grids_equal_on_the_fly(tmp_path, rng):
     cached = PairedWindows(
         [tmp_path / "a.h5", tmp_path / "b.h5"], crop=(8, 8), flip=True, precompute=True
     )
-    assert cached._cache is not None and cached._cache.dtype == np.int16
+    assert cached._cache is not None and cached._cache[0].dtype == np.int16
     for i in range(len(lazy)):
         for a, b in zip(lazy.item(i, 3), cached.item(i, 3), strict=True):
             np.testing.assert_array_equal(a, b)

@@ -57,7 +57,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="--loss keep: the share of the loss on the events to keep (0.5: balanced; "
         "higher drops only where surer)",
     )
-    p.add_argument("--crop", type=_crop, metavar="HxW", help="random crop size")
+    p.add_argument(
+        "--crop",
+        type=_crop,
+        metavar="HxW",
+        help="random crop size (needed when the sequences have several sensor sizes)",
+    )
     p.add_argument("--seed", type=int)
     p.add_argument("--val-every", type=int)
     p.add_argument("--checkpoint-every", type=int)

@@ -36,21 +36,40 @@ __all__ = ["PairedWindows", "WindowRef", "sequence_windows"]
 
 @dataclass(frozen=True)
 class WindowRef:
-    """One window of one sequence file."""
+    """One window of one sequence file (of ``sensor_size``; ``None``: not recorded here)."""
 
     path: Path
     start_us: int
+    sensor_size: SensorSize | None = None
 
 
 def sequence_windows(
     paths: Sequence[str | os.PathLike[str]],
     window_us: int = 20_000,
     groups: Sequence[str] = ("input", "gt"),
+    *,
+    mixed_sizes: bool = False,
 ) -> tuple[list[WindowRef], SensorSize]:
     """Aligned windows of every sequence and the common sensor size.
 
     Windows start at the multiple of ``window_us`` at or below the sequence
-    start and cover it to its end; sequences of another sensor size are an error.
+    start and cover it to its end. Sequences of another sensor size are an
+    error, unless ``mixed_sizes``: then each window carries its own size and
+    the size returned is the smallest width and height among them (the
+    largest crop every window allows).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.events import make_events
+    >>> from edeflare.io.dsec import write_dsec_groups
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> ev = make_events([100, 25_000], [1, 2], [1, 2], [1, 0])
+    >>> write_dsec_groups(d / "a.h5", {"input": ev, "gt": ev}, (8, 6))
+    >>> write_dsec_groups(d / "b.h5", {"input": ev, "gt": ev}, (6, 9))
+    >>> refs, size = sequence_windows([d / "a.h5", d / "b.h5"], mixed_sizes=True)
+    >>> [(r.start_us, r.sensor_size) for r in refs], size
+    ([(0, (8, 6)), (20000, (8, 6)), (0, (6, 9)), (20000, (6, 9))], (6, 6))
     """
     refs: list[WindowRef] = []
     common: SensorSize | None = None
@@ -63,9 +82,11 @@ def sequence_windows(
         if common is None:
             common = size
         elif size != common:
-            raise EventFileError(path, f"sensor size {size} differs from {common}")
+            if not mixed_sizes:
+                raise EventFileError(path, f"sensor size {size} differs from {common}")
+            common = (min(common[0], size[0]), min(common[1], size[1]))
         first = window_start_for(start, window_us)
-        refs.extend(WindowRef(path, s) for s in range(first, end, window_us))
+        refs.extend(WindowRef(path, s, size) for s in range(first, end, window_us))
     if common is None:
         raise EventFileError(Path(paths[0]) if paths else Path("."), "no events in any sequence")
     return refs, common
@@ -82,6 +103,9 @@ class PairedWindows:
         Window length and time bins (paper: 20 ms, 8).
     crop : (height, width), optional
         Random crop of this size (training on CPU); None keeps the full sensor.
+        Sequences may be of several sensor sizes (each window is encoded at
+        its own; :attr:`sensor_size` is then the smallest width and height);
+        batches of them need a crop no larger than that.
     flip : bool
         Random horizontal and vertical flips.
     seed : int
@@ -120,24 +144,27 @@ class PairedWindows:
     ) -> None:
         self.window_us, self.bins = int(window_us), int(bins)
         self.groups = (input_group, target_group)
-        self.windows, self.sensor_size = sequence_windows(paths, window_us, self.groups)
+        self.windows, self.sensor_size = sequence_windows(
+            paths, window_us, self.groups, mixed_sizes=True
+        )
         width, height = self.sensor_size
+        self.sizes = sorted({ref.sensor_size for ref in self.windows})  # type: ignore[type-var]
+        what = "the sensor" if len(self.sizes) == 1 else "the smallest of the sensors'"
         if crop is not None and (crop[0] > height or crop[1] > width):
-            raise ValueError(f"crop {crop} (height, width) exceeds the sensor {width}x{height}")
+            raise ValueError(f"crop {crop} (height, width) exceeds {what} {width}x{height}")
         self.crop = crop
         self.flip = flip
         self.seed = int(seed)
         self.epoch = 0
         self._readers: dict[tuple[Path, str], DsecReader] = {}
-        self._cache: np.ndarray | None = None
+        self._cache: list[np.ndarray] | None = None
         if precompute:
-            width, height = self.sensor_size
-            cache = np.empty((len(self.windows), 2, self.bins, height, width), dtype=np.int16)
+            cache = []
             for i in range(len(self.windows)):
-                for j, grid in enumerate(self._encode(i)):
-                    if grid.size and np.abs(grid).max() > np.iinfo(np.int16).max:
-                        raise ValueError(f"window {i}: a cell exceeds int16; use precompute=False")
-                    cache[i, j] = grid
+                pair = np.stack(self._encode(i))
+                if pair.size and np.abs(pair).max() > np.iinfo(np.int16).max:
+                    raise ValueError(f"window {i}: a cell exceeds int16; use precompute=False")
+                cache.append(pair.astype(np.int16))
             self._cache = cache
 
     def __len__(self) -> int:
@@ -180,7 +207,8 @@ class PairedWindows:
             events = self._reader(ref.path, group).read_time(
                 ref.start_us, ref.start_us + self.window_us
             )
-            out.append(encode(events, self.sensor_size, ref.start_us, self.window_us, self.bins))
+            size = ref.sensor_size or self.sensor_size
+            out.append(encode(events, size, ref.start_us, self.window_us, self.bins))
         return out[0], out[1]
 
     def __getitem__(self, key: int | tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
