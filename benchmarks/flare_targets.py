@@ -41,6 +41,7 @@ from edeflare.deflare import Method, Streamer, create_method
 from edeflare.eval.benchmark import benchmark
 from edeflare.eval.metrics import HIGHER_IS_BETTER, METRICS, keep_only_oracle
 from edeflare.eval.score import bundled_lights, score_recording
+from edeflare.events import event_keys
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
 
@@ -109,22 +110,16 @@ def real_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     return rows, verdicts
 
 
-def _keys(events: np.ndarray) -> np.ndarray:
-    """One int64 per event: (t, x, y, p) packed (t < 2^31 us, x, y < 2^12)."""
-    t, x, y = (events[k].astype(np.int64) for k in ("t", "x", "y"))
-    return (t << 25) | (x << 13) | (y << 1) | events["p"].astype(np.int64)
-
-
 class _OracleStreamer(Streamer):
-    def __init__(self, kept: dict[bytes, np.ndarray]) -> None:
-        self.kept, self.keys = kept, None
+    def __init__(self, kept: dict[bytes, np.ndarray], sensor_size: tuple[int, int]) -> None:
+        self.kept, self.size, self.keys = kept, sensor_size, None
 
     def process(self, events: np.ndarray, until_us: int) -> np.ndarray:
         if self.keys is None:  # the file, from its first input events
             if events.size < 16:
                 raise ValueError("the oracle needs 16 events in the first window")
-            self.keys = self.kept[_keys(events[:16]).tobytes()]
-        k = _keys(events)
+            self.keys = self.kept[event_keys(events[:16], self.size).tobytes()]
+        k = event_keys(events, self.size)
         i = np.minimum(np.searchsorted(self.keys, k), self.keys.size - 1)
         return events[self.keys[i] == k]
 
@@ -146,10 +141,10 @@ class KeepOnlyOracle(Method):
             inp, size = read_dsec(path, "input")
             gt, _ = read_dsec(path, "gt")
             keep = keep_only_oracle(inp, gt, size, max_distance=ORACLE_UNITS)
-            self.kept[_keys(inp[:16]).tobytes()] = np.sort(_keys(inp[keep]))
+            self.kept[event_keys(inp[:16], size).tobytes()] = np.sort(event_keys(inp[keep], size))
 
     def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
-        return _OracleStreamer(self.kept)
+        return _OracleStreamer(self.kept, sensor_size)
 
 
 def r_sim(args: argparse.Namespace) -> tuple[list[dict], list[dict], list[dict], list[dict]]:

@@ -122,11 +122,11 @@ def response_time(
     tx, ty = (np.interp(tt, track[:, 0], track[:, k]) for k in (1, 2))
     speed = float(np.hypot(np.diff(tx), np.diff(ty)).sum() / (tt[-1] - tt[0]))  # px/us
     t = events["t"].astype(np.int64)
-    pix = events["y"].astype(np.int64) * (int(events["x"].max()) + 1) + events["x"]
+    width = int(events["x"].max()) + 1
+    pix = events["y"].astype(np.int64) * width + events["x"]
     order = np.lexsort((t, pix))
     pix_s, t_s, p_s = pix[order], t[order], events["p"][order]
     uniq, start, count = np.unique(pix_s, return_index=True, return_counts=True)
-    width = int(events["x"].max()) + 1
     ux, uy = (uniq % width).astype(np.float64), (uniq // width).astype(np.float64)
     nearest, dist = np.zeros(uniq.size, np.int64), np.full(uniq.size, np.inf)
     for k in range(0, tt.size, 250):  # chunks bound the memory of the distance table

@@ -30,6 +30,7 @@ __all__ = [
     "count_map",
     "crop",
     "empty_events",
+    "event_keys",
     "iter_chunk_windows",
     "iter_time_windows",
     "make_events",
@@ -364,6 +365,26 @@ def sort_events(events: np.ndarray) -> np.ndarray:
     """
     order = np.argsort(events["t"], kind="stable")
     return events[order]
+
+
+def event_keys(events: np.ndarray, sensor_size: SensorSize) -> np.ndarray:
+    """One ``int64`` per event, equal exactly for equal ``(t, x, y, p)`` on ``sensor_size``.
+
+    For finding the events of one stream in another (``np.isin``, ``np.searchsorted``):
+    ``((t * W + x) * H + y) * 2 + p`` (exact while ``t`` stays below
+    ``2**62 / (W H)`` us: 58 days at 1280x720).
+
+    Examples
+    --------
+    >>> a = make_events([0, 5, 5], [1, 2, 2], [0, 0, 0], [1, 1, 0])
+    >>> b = make_events([5], [2], [0], [0])
+    >>> np.isin(event_keys(a, (4, 3)), event_keys(b, (4, 3))).tolist()
+    [False, False, True]
+    """
+    width, height = sensor_size
+    return (
+        (events["t"].astype(np.int64) * width + events["x"]) * height + events["y"]
+    ) * 2 + events["p"]
 
 
 def merge_events(*streams: np.ndarray) -> np.ndarray:

@@ -64,7 +64,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import ParameterError
-from ..events import EVENT_DTYPE, SensorSize, check_sensor_size
+from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, event_keys
 
 __all__ = ["SensingConfig", "sparse_sensing"]
 
@@ -136,12 +136,6 @@ class SensingConfig:
         return d
 
 
-def _keys(ev: np.ndarray, size: SensorSize) -> np.ndarray:
-    """One int64 per event, equal exactly for equal ``(t, x, y, p)``."""
-    w, h = size
-    return ((ev["t"].astype(np.int64) * w + ev["x"]) * h + ev["y"]) * 2 + ev["p"]
-
-
 def _log_uniform(gen: np.random.Generator, lo: float, hi: float) -> float:
     return float(np.exp(gen.uniform(np.log(lo), np.log(hi)))) if hi > lo else float(lo)
 
@@ -205,7 +199,7 @@ def sparse_sensing(
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     inp, light = streams["input"], streams["light"]
     q = _log_uniform(gen, *config.survival)
-    is_flare = np.isin(_keys(inp, size), _keys(streams["flare"], size))
+    is_flare = np.isin(event_keys(inp, size), event_keys(streams["flare"], size))
     step = (inp["t"].astype(np.int64) - int(t_start_us)) // config.step_us
     light_step = (light["t"].astype(np.int64) - int(t_start_us)) // config.step_us
     near = np.zeros(inp.size, dtype=bool)
@@ -234,7 +228,7 @@ def sparse_sensing(
         survival *= np.minimum(1.0, (2 * radius[at][s] / np.maximum(d, 1e-6)) ** config.falloff)
     drop = is_flare & ~near & (gen.random(inp.size) >= survival)
     kept = inp[~drop]
-    restored = light[~np.isin(_keys(light, size), _keys(kept, size))]
+    restored = light[~np.isin(event_keys(light, size), event_keys(kept, size))]
     t_end = int(inp["t"][-1]) + 1 if t_end_us is None and inp.size else int(t_end_us or t_start_us)
     rate = _log_uniform(gen, *config.noise_rate) if config.noise_rate[1] > 0 else 0.0
     n_noise = int(gen.poisson(rate * width * height * max(t_end - int(t_start_us), 0) / 1e6))
@@ -247,7 +241,7 @@ def sparse_sensing(
     new_input = np.concatenate([kept, restored, noise, hot])
     new_input = new_input[np.argsort(new_input["t"], kind="stable")]
     true = np.concatenate([streams["gt"], light, inp[is_flare & near], noise])
-    target = new_input[np.isin(_keys(new_input, size), _keys(true, size))]
+    target = new_input[np.isin(event_keys(new_input, size), event_keys(true, size))]
     out = dict(streams)
     out.update(input=new_input, gt=target, gt_full=streams["gt"])
     return out
