@@ -308,6 +308,52 @@ def test_score_recording_runs_methods_and_reads_predictions(recording, tmp_path)
     assert json.loads(json.dumps(report.to_dict()))["methods"][2]["method"] == "nolight"
 
 
+class _DropPhase(edeflare.deflare.Streamer):
+    """Drops the events 300-900 us into each aligned 2 ms window: a windowed method."""
+
+    def process(self, events, until_us):
+        return events[~((events["t"] % 2000 >= 300) & (events["t"] % 2000 < 900))]
+
+
+class _DropPhaseMethod(edeflare.deflare.Method):
+    def streamer(self, sensor_size, *, rng=None, prepared=None):
+        return _DropPhase()
+
+
+@pytest.fixture
+def drop_phase():
+    edeflare.deflare.register_method("test-drop-phase", lambda: _DropPhaseMethod())
+    yield "test-drop-phase"
+    edeflare.deflare._unregister("test-drop-phase")
+
+
+def test_score_recording_averages_window_phases(recording, drop_phase):
+    path, lights, _ = recording  # the scene's events at t = 0, 100, ..., 1900 us
+    one = score_recording(path, ["raw", drop_phase], None, lights, window_us=2000)
+    two = score_recording(path, ["raw", drop_phase], None, lights, window_us=2000, phases=2)
+    # phase 0 drops t = 300..800: light event 3, the 4 halo, ghost 8 -> removed 5/6, kept
+    # 3/4 of the light and all the background
+    m1 = one.rows[1]
+    assert (m1.flare_removed, m1.light_kept, m1.background_kept) == (5 / 6, 0.75, 1.0)
+    assert m1.combined == pytest.approx(3 / (6 / 5 + 4 / 3 + 1)) and m1.combined_worst is None
+    # phase 1 (delayed 1 ms) drops t = 1300..1800: six background events, no flare
+    m2 = two.rows[1]
+    assert m2.flare_removed == pytest.approx(5 / 12) and m2.light_kept == 0.875
+    assert m2.background_kept == pytest.approx(0.7)
+    assert m2.combined == pytest.approx(m1.combined / 2) and m2.combined_worst == 0.0
+    # a method without windows scores the same at every phase; its output is on the
+    # recording's clock
+    assert two.rows[0].light_kept == 1.0 and two.rows[0].combined_worst == 0.0
+    assert two.phases == 2 and json.loads(json.dumps(two.to_dict()))["phases"] == 2
+    assert "| worst phase |" in two.to_markdown() and "worst" not in one.to_markdown()
+    assert f"| {drop_phase} | 50.0 % | 25.0 % | 41.7 % | 87.5 % | 70.0 % | 0.425 | 0.000 |" in (
+        two.to_markdown()
+    )
+    for bad in (0, 2.5, True, 2001):
+        with pytest.raises(ParameterError, match="phases"):
+            score_recording(path, ["raw"], None, lights, window_us=2000, phases=bad)
+
+
 def test_score_recording_errors(recording, tmp_path):
     path, lights, ev = recording
     other = tmp_path / "other.h5"

@@ -70,6 +70,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument(
         "--ghost-factor", type=float, help="ghost disc radius / source radius [annotation's, 2]"
     )
+    p.add_argument(
+        "--phases",
+        type=int,
+        default=1,
+        help="run each method at this many window phases (the recording delayed by "
+        "multiples of window/phases) and report the mean and the worst phase: windowed "
+        "methods (the models, voxel, PFD) can depend on where a recording's windows start",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of methods that draw")
     p.add_argument("--report", type=Path, help="write the Markdown table to this file")
     p.add_argument("--json", type=Path, help="write the scores as JSON to this file")
@@ -104,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
         max_sources=args.max_sources,
         overrides=overrides,
         rng=args.seed,
+        phases=args.phases,
     )
     markdown = report.to_markdown()
     print(markdown, end="")

@@ -630,6 +630,9 @@ class MethodScore:
     """Run time of the method (None for a given prediction file)."""
     rtf: float | None = None
     """Real-time factor: run time over the recording's span (below 1: faster than real time)."""
+    combined_worst: float | None = None
+    """Scored at several window phases (:func:`score_recording`'s ``phases``): the scores
+    above are the means over the phases, this the lowest combined score of one phase."""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain values (NaN as None)."""
@@ -748,6 +751,7 @@ class ScoreReport:
     lights_from: str
     window_us: int
     rows: tuple[MethodScore, ...]
+    phases: int = 1
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dictionary."""
@@ -763,6 +767,7 @@ class ScoreReport:
             "halo_factor": self.lights.halo_factor,
             "ghost_factor": self.lights.ghost_factor,
             "window_us": self.window_us,
+            "phases": self.phases,
             "score_background": self.lights.score_background,
             "combined": "harmonic mean of flare_removed, light_kept"
             + (", background_kept" if self.lights.score_background else ""),
@@ -783,22 +788,55 @@ class ScoreReport:
                 if self.lights.score_background
                 else " Background: sensor noise, not in the "
                 "combined score (the harmonic mean of flare removed and light kept)."
+            )
+            + (
+                ""
+                if self.phases == 1
+                else f" Methods run at {self.phases} window phases (the recording delayed "
+                f"by multiples of {self.window_us // self.phases / 1000:g} ms): mean scores, "
+                "and the worst phase's combined score."
             ),
             "",
             "| method | halo removed | ghost removed | flare removed | light kept "
-            "| background kept | combined | events out | time (s) | RTF |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+            "| background kept | combined | "
+            + ("worst phase | " if self.phases > 1 else "")
+            + "events out | time (s) | RTF |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            + ("---:|" if self.phases > 1 else ""),
         ]
         for r in self.rows:
             cells = [_pct(v) for v in (r.halo_removed, r.ghost_removed, r.flare_removed,
                                        r.light_kept, r.background_kept)]  # fmt: skip
             comb = "-" if math.isnan(r.combined) else f"{r.combined:.3f}"
+            if self.phases > 1:
+                worst = r.combined_worst
+                comb += " | " + ("-" if worst is None or math.isnan(worst) else f"{worst:.3f}")
             sec = "-" if r.seconds is None else f"{r.seconds:.2f}"
             rtf = "-" if r.rtf is None else f"{r.rtf:.2f}"
             lines.append(
                 f"| {r.method} | {' | '.join(cells)} | {comb} | {r.events_out:,} | {sec} | {rtf} |"
             )
         return "\n".join(lines) + "\n"
+
+
+def _mean_over_phases(
+    first: list[MethodScore], others: list[list[MethodScore]]
+) -> list[MethodScore]:
+    """Each row of ``first`` (phase 0, given files included) with its scores averaged over
+    the phases of ``others`` (the methods run, in order) and its worst combined score."""
+    terms = ("halo_removed", "ghost_removed", "flare_removed", "light_kept",
+             "background_kept", "combined")  # fmt: skip
+    rows = []
+    for i, row in enumerate(first):
+        if not others or i >= len(others[0]):  # a given file: one phase
+            rows.append(row)
+            continue
+        all_rows = [row, *(o[i] for o in others)]
+        mean = {t: float(np.mean([getattr(r, t) for r in all_rows])) for t in terms}
+        combined = [r.combined for r in all_rows]
+        worst = math.nan if any(math.isnan(c) for c in combined) else min(combined)
+        rows.append(dataclasses.replace(row, **mean, combined_worst=worst))
+    return rows
 
 
 def _pct(v: float) -> str:
@@ -816,6 +854,7 @@ def score_recording(
     overrides: Mapping[str, float] | None = None,
     method_params: Mapping[str, Mapping[str, Any]] | None = None,
     rng: np.random.Generator | int | None = 0,
+    phases: int = 1,
 ) -> ScoreReport:
     """Score methods (run now) and de-flared files on a real recording without ground truth.
 
@@ -839,6 +878,15 @@ def score_recording(
         Method name -> parameters for :func:`edeflare.create_method`.
     rng : numpy.random.Generator or int, optional
         Seeds methods that draw.
+    phases : int
+        Run each method on the recording delayed by ``k * window_us // phases``
+        for ``k = 0 .. phases - 1`` (then undone) and report the mean scores,
+        with the worst phase's combined score. Methods that work on aligned
+        windows (the models, ``voxel``, the PFDs) decide per window, and where
+        a recording's windows start relative to what it shows (a lamp's
+        100 Hz flicker, a moving source) is chance: one phase can flatter or
+        wrong them. Filters that see no windows score the same at every phase.
+        Given files (``preds``) are scored once.
 
     Returns
     -------
@@ -886,15 +934,28 @@ def score_recording(
             the_lights = dataclasses.replace(the_lights, **dict(overrides))
         except TypeError as exc:
             raise ParameterError(str(exc)) from None
-    outputs: dict[str, np.ndarray] = {}
+    if isinstance(phases, bool) or not isinstance(phases, (int, np.integer)) or phases < 1:
+        raise ParameterError(f"phases must be a positive int, got {phases!r}")
+    if phases > window_us:
+        raise ParameterError(f"phases ({phases}) must be at most window_us ({window_us})")
+    # phase k -> method name -> output (each phase's outputs back on the recording's clock)
+    by_phase: list[dict[str, np.ndarray]] = [{} for _ in range(int(phases))]
     seconds: dict[str, float] = {}
     for name in methods:
-        if name in outputs:
+        if name in by_phase[0]:
             raise ParameterError(f"method {name!r} given twice")
         method = create_method(name, **dict((method_params or {}).get(name, {})))
-        t0 = time.perf_counter()
-        outputs[name] = method(events, size, rng=rng)
-        seconds[name] = time.perf_counter() - t0
+        for k, outputs_k in enumerate(by_phase):
+            delay = k * int(window_us) // int(phases)
+            delayed = events.copy()
+            delayed["t"] += delay
+            t0 = time.perf_counter()
+            out = method(delayed, size, rng=rng)
+            if k == 0:
+                seconds[name] = time.perf_counter() - t0
+            out["t"] -= delay
+            outputs_k[name] = out
+    outputs = by_phase[0]
     for name, path in (preds or {}).items():
         if name in outputs:
             raise ParameterError(f"method name {name!r} given twice")
@@ -906,6 +967,11 @@ def score_recording(
             )  # fmt: skip
         outputs[name] = pred
     rows = score_events(events, outputs, the_lights, size, window_us=window_us, seconds=seconds)
+    if phases > 1:
+        rows = _mean_over_phases(
+            rows,
+            [score_events(events, o, the_lights, size, window_us=window_us) for o in by_phase[1:]],
+        )
     regions = classify_events(events, the_lights, size)
     counts = {r: int(regions.mask(r).sum()) for r in (*REGIONS, "rim")}
     return ScoreReport(
@@ -918,4 +984,5 @@ def score_recording(
         lights_from=source,
         window_us=int(window_us),
         rows=tuple(rows),
+        phases=int(phases),
     )
