@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import json
 import os
 import subprocess
 import sys
@@ -266,6 +267,17 @@ def test_sequences_of_several_sensor_sizes_train_with_a_crop(dataset, tmp_path):
         train(_config(), paths, tmp_path / "a", progress=False)
     final = train(_config(crop=(8, 12), iterations=4), paths, tmp_path / "b", progress=False)
     assert final.is_file() and len(_log(tmp_path / "b" / "train_log.csv")) == 4
+
+
+def test_time_shift_is_a_recorded_option_that_changes_what_is_seen(dataset, tmp_path):
+    paths = _paths(dataset, "train")
+    plain = train(_config(iterations=4), paths, tmp_path / "a", progress=False)
+    shifted = train(_config(iterations=4, time_shift=True), paths, tmp_path / "b", progress=False)
+    assert json.loads((tmp_path / "b" / "config.json").read_text())["time_shift"] is True
+    wa, wb = _weights(plain), _weights(shifted)
+    assert any(not torch.equal(wa[k], wb[k]) for k in wa)
+    with pytest.raises(EdeflareError, match=r"other values of \['time_shift'\]"):
+        train(_config(iterations=8), paths, tmp_path / "b", progress=False)
 
 
 def test_too_little_data_is_a_clear_error(dataset, tmp_path):

@@ -75,6 +75,7 @@ class TrainConfig:
     bins: int = 8
     crop: tuple[int, int] | None = None  # (height, width) random crops
     flip: bool = False
+    time_shift: bool = False  # shift windows by whole bins: no learning where in a window
     seed: int = 0
     log_every: int = 10
     val_every: int = 1000
@@ -398,6 +399,7 @@ def train(
         bins=config.bins,
         crop=config.crop,
         flip=config.flip,
+        time_shift=config.time_shift,
         seed=config.seed,
         precompute=config.precompute,
     )

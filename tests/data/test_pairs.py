@@ -114,3 +114,36 @@ def test_precomputed_grids_equal_on_the_fly(tmp_path, rng):
         for a, b in zip(lazy.item(i, 3), cached.item(i, 3), strict=True):
             np.testing.assert_array_equal(a, b)
             assert b.dtype == np.float32
+
+
+def test_time_shift_is_the_window_started_whole_bins_later(tmp_path, rng):
+    # windows of 20 ms, 8 bins of 2.5 ms: a shift of s bins is the window at start + 2.5 s ms
+    inp, gt = _sequence(tmp_path / "a.h5", rng, t0=1_000_000, span=60_000)
+    _sequence(tmp_path / "b.h5", rng, t0=1_000_000, span=30_000)
+    plain = PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"], flip=True, seed=5)
+    ds = PairedWindows([tmp_path / "a.h5", tmp_path / "b.h5"], flip=True, seed=5, time_shift=True)
+    # a: windows 0, 1, 2 (0 and 1 continued by the next); b: windows 3, 4 (3 continued)
+    assert ds._next.tolist() == [1, 2, -1, 4, -1]
+    shifts = set()
+    for epoch in range(12):
+        x, y = ds.item(0, epoch)
+        rng_e = np.random.default_rng((5, epoch, 0))
+        flip_h, flip_v = rng_e.random() < 0.5, rng_e.random() < 0.5
+        s = int(rng_e.integers(0, 8))
+        shifts.add(s)
+        start = 1_000_000 + s * 2_500
+        want = []
+        for ev in (inp, gt):
+            sel = (ev["t"] >= start) & (ev["t"] < start + 20_000)
+            g = encode(ev[sel], (16, 12), start, 20_000)
+            g = g[:, :, ::-1] if flip_h else g
+            want.append(g[:, ::-1, :] if flip_v else g)
+        np.testing.assert_array_equal(x[0], want[0])
+        np.testing.assert_array_equal(y[0], want[1])
+        # the draws before the shift are the plain dataset's: the same flips
+        if s == 0:
+            np.testing.assert_array_equal(x, plain.item(0, epoch)[0])
+    assert len(shifts) > 3
+    # a sequence's last window is never shifted
+    for epoch in range(6):
+        np.testing.assert_array_equal(ds.item(2, epoch)[0], plain.item(2, epoch)[0])

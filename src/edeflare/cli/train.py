@@ -63,6 +63,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         metavar="HxW",
         help="random crop size (needed when the sequences have several sensor sizes)",
     )
+    p.add_argument(
+        "--time-shift",
+        action="store_true",
+        default=None,
+        help="shift each training window's start by a random whole number of bins, so the "
+        "model cannot learn where in its window things happen (a lamp's flicker, a source's "
+        "motion start at any phase of a real recording's windows)",
+    )
     p.add_argument("--seed", type=int)
     p.add_argument("--val-every", type=int)
     p.add_argument("--checkpoint-every", type=int)

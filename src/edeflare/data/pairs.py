@@ -18,6 +18,7 @@ worker, rank or resume.
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -108,6 +109,14 @@ class PairedWindows:
         batches of them need a crop no larger than that.
     flip : bool
         Random horizontal and vertical flips.
+    time_shift : bool
+        Random shift of the window's start by a whole number of bins, ``0`` to
+        ``bins - 1`` (the shifted window is this window's last bins followed by
+        the next window's first ones; a sequence's last window is not
+        shifted). Windows of a recording start at an arbitrary phase of what
+        it shows (a lamp's 100 Hz flicker, a source's motion), so a model
+        should not learn where in the window things happen: without the shift
+        every training window starts where its sequence does.
     seed : int
         Seeds the augmentations together with the epoch and the index.
     precompute : bool
@@ -137,6 +146,7 @@ class PairedWindows:
         bins: int = 8,
         crop: tuple[int, int] | None = None,
         flip: bool = False,
+        time_shift: bool = False,
         seed: int = 0,
         precompute: bool = False,
         input_group: str = "input",
@@ -154,6 +164,12 @@ class PairedWindows:
             raise ValueError(f"crop {crop} (height, width) exceeds {what} {width}x{height}")
         self.crop = crop
         self.flip = flip
+        self.time_shift = time_shift
+        # the window that continues each one in its sequence, or -1 (time_shift)
+        self._next = np.full(len(self.windows), -1, dtype=np.int64)
+        for i, (a, b) in enumerate(itertools.pairwise(self.windows)):
+            if a.path == b.path and b.start_us == a.start_us + self.window_us:
+                self._next[i] = i + 1
         self.seed = int(seed)
         self.epoch = 0
         self._readers: dict[tuple[Path, str], DsecReader] = {}
@@ -221,17 +237,25 @@ class PairedWindows:
         """Window ``index`` with the augmentation draws of ``epoch`` (stateless)."""
         x, y = self.grids(index)
         rng = np.random.default_rng((self.seed, int(epoch), int(index)))
+        top = left = 0
+        if self.crop is not None:
+            top = int(rng.integers(0, x.shape[1] - self.crop[0] + 1))
+            left = int(rng.integers(0, x.shape[2] - self.crop[1] + 1))
+        flips = (rng.random() < 0.5, rng.random() < 0.5) if self.flip else (False, False)
+        # drawn last, so the draws above are those of a dataset without the shift
+        shift = int(rng.integers(0, self.bins)) if self.time_shift else 0
+        if shift and self._next[index] >= 0:
+            nx, ny = self.grids(int(self._next[index]))
+            x = np.concatenate([x[shift:], nx[:shift]])
+            y = np.concatenate([y[shift:], ny[:shift]])
         if self.crop is not None:
             ch, cw = self.crop
-            top = int(rng.integers(0, x.shape[1] - ch + 1))
-            left = int(rng.integers(0, x.shape[2] - cw + 1))
             x = x[:, top : top + ch, left : left + cw]
             y = y[:, top : top + ch, left : left + cw]
-        if self.flip:
-            if rng.random() < 0.5:
-                x, y = x[:, :, ::-1], y[:, :, ::-1]
-            if rng.random() < 0.5:
-                x, y = x[:, ::-1, :], y[:, ::-1, :]
+        if flips[0]:
+            x, y = x[:, :, ::-1], y[:, :, ::-1]
+        if flips[1]:
+            x, y = x[:, ::-1, :], y[:, ::-1, :]
         return np.ascontiguousarray(x)[None], np.ascontiguousarray(y)[None]
 
     def __getstate__(self) -> dict[str, object]:  # open HDF5 handles do not pickle
