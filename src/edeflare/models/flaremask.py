@@ -52,8 +52,10 @@ __all__ = [
     "PIXEL_FEATURES",
     "FlareMaskNet",
     "event_features",
+    "event_keep_logits",
     "event_keep_mask",
     "event_pixel_features",
+    "keep_logit_threshold",
     "keep_loss",
 ]
 
@@ -406,6 +408,82 @@ def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np
     return np.log1p(counts.astype(np.float64))
 
 
+def keep_logit_threshold(threshold: float) -> float:
+    """The logit above which an event's keep probability :math:`\\sigma(\\ell + \\ln 3)` exceeds it.
+
+    Examples
+    --------
+    >>> round(keep_logit_threshold(0.5), 4)  # -ln 3
+    -1.0986
+    """
+    if not 0.0 < threshold < 1.0:
+        raise ValueError(f"threshold must be in (0, 1), got {threshold}")
+    return float(np.log(threshold / (1.0 - threshold)) - np.log(3.0))
+
+
+def event_keep_logits(
+    logits: np.ndarray,
+    events: np.ndarray,
+    window_start_us: int,
+    window_us: int,
+    scale: int,
+    *,
+    pixel_params: dict[str, np.ndarray] | None = None,
+    sensor_size: tuple[int, int] | None = None,
+) -> np.ndarray:
+    """Per-event keep logits (float64) from low-resolution logits ``(2 bins, h, w)``.
+
+    What :func:`event_keep_mask` thresholds: the logit of the event's own
+    polarity and bin, interpolated bilinearly at the event's pixel centre and
+    refined with the event's pixel features where ``pixel_params`` are given.
+    The window may start anywhere (it need not be aligned).
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([0, 15], [1, 1], [1, 1], [1, 1])
+    >>> lg = np.zeros((4, 1, 1), np.float32); lg[1] = -5.0   # ON events of bin 1
+    >>> event_keep_logits(lg, ev, 0, 20, scale=4).tolist()
+    [0.0, -5.0]
+    """
+    if pixel_params is None:
+        on = total = np.zeros(0, np.int32)
+        width = height = 0
+        w_in = np.zeros((0, 4))
+        b_in = gain = w_out = b_out = np.zeros(1)
+    else:
+        if sensor_size is None:
+            raise ValueError("the per-pixel refinement needs the sensor size")
+        width, height = int(sensor_size[0]), int(sensor_size[1])
+        on, total, _ = _frames(width, height)
+        w_in, b_in, gain, w_out, b_out = (
+            np.ascontiguousarray(pixel_params[k], dtype=np.float64)
+            for k in ("w_in", "b_in", "gain", "w_out", "b_out")
+        )
+    # the refinement counts into sensor-sized frames; the logits are sampled clipped
+    bounds = (width, height) if pixel_params is not None else (1 << 31, 1 << 31)
+    _check_inside(events, window_start_us, window_us, *bounds)
+    return _event_logits(
+        events["t"],
+        events["x"],
+        events["y"],
+        events["p"],
+        np.ascontiguousarray(logits, dtype=np.float32),
+        int(window_start_us),
+        int(window_us),
+        int(scale),
+        on,
+        total,
+        width,
+        height,
+        w_in,
+        b_in,
+        gain,
+        w_out,
+        b_out,
+    )
+
+
 def event_keep_mask(
     logits: np.ndarray,
     events: np.ndarray,
@@ -436,45 +514,17 @@ def event_keep_mask(
     >>> event_keep_mask(lg, ev, 0, 20, scale=4).tolist()
     [True, False]
     """
-    if not 0.0 < threshold < 1.0:
-        raise ValueError(f"threshold must be in (0, 1), got {threshold}")
-    if pixel_params is None:
-        on = total = np.zeros(0, np.int32)
-        width = height = 0
-        w_in = np.zeros((0, 4))
-        b_in = gain = w_out = b_out = np.zeros(1)
-    else:
-        if sensor_size is None:
-            raise ValueError("the per-pixel refinement needs the sensor size")
-        width, height = int(sensor_size[0]), int(sensor_size[1])
-        on, total, _ = _frames(width, height)
-        w_in, b_in, gain, w_out, b_out = (
-            np.ascontiguousarray(pixel_params[k], dtype=np.float64)
-            for k in ("w_in", "b_in", "gain", "w_out", "b_out")
-        )
-    # the refinement counts into sensor-sized frames; the logits are sampled clipped
-    bounds = (width, height) if pixel_params is not None else (1 << 31, 1 << 31)
-    _check_inside(events, window_start_us, window_us, *bounds)
-    v = _event_logits(
-        events["t"],
-        events["x"],
-        events["y"],
-        events["p"],
-        np.ascontiguousarray(logits, dtype=np.float32),
-        int(window_start_us),
-        int(window_us),
-        int(scale),
-        on,
-        total,
-        width,
-        height,
-        w_in,
-        b_in,
-        gain,
-        w_out,
-        b_out,
+    cut = keep_logit_threshold(threshold)
+    v = event_keep_logits(
+        logits,
+        events,
+        window_start_us,
+        window_us,
+        scale,
+        pixel_params=pixel_params,
+        sensor_size=sensor_size,
     )
-    return v > np.log(threshold / (1.0 - threshold)) - np.log(3.0)
+    return v > cut
 
 
 def keep_loss(

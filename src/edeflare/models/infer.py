@@ -36,7 +36,7 @@ from ..events import EVENT_DTYPE, SensorSize, check_events, select_events
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
-from .flaremask import FlareMaskNet, event_features, event_keep_mask
+from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
 from .weights import ModelCard, load_model
 
 __all__ = [
@@ -328,29 +328,37 @@ class ModelDeflarer:
         if batch:
             yield from self._run(batch, sensor_size, lo, hi)
 
-    def _run_mask(
+    def window_logits(
         self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
-    ) -> Iterator[tuple[int, np.ndarray]]:
+    ) -> list[np.ndarray]:
+        """A mask model's per-event keep logits for ``(window_start_us, events)`` windows.
+
+        One network call for the batch; windows may start anywhere (aligned or
+        not). An event is kept where its logit exceeds
+        :func:`~edeflare.models.flaremask.keep_logit_threshold` of
+        :attr:`keep_threshold`.
+        """
         net = self.model
-        assert isinstance(net, FlareMaskNet)
+        if not isinstance(net, FlareMaskNet):
+            raise EdeflareError("per-event keep logits need a mask model (a mask.* preset)")
         w, scale = self.window_us, net.scale
         feats = np.stack(
             [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
         )
         logits = self._network(feats, sensor_size, True)
-        params = self.pixel_params
-        for (start, events), lg in zip(batch, logits, strict=True):
-            keep = event_keep_mask(
-                lg,
-                events,
-                start,
-                w,
-                scale,
-                self.keep_threshold,
-                pixel_params=params,
-                sensor_size=sensor_size,
+        return [
+            event_keep_logits(
+                lg, events, start, w, scale, pixel_params=self.pixel_params, sensor_size=sensor_size
             )
-            yield start, select_events(events, keep)
+            for (start, events), lg in zip(batch, logits, strict=True)
+        ]
+
+    def _run_mask(
+        self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
+    ) -> Iterator[tuple[int, np.ndarray]]:
+        cut = keep_logit_threshold(self.keep_threshold)
+        for (start, events), v in zip(batch, self.window_logits(batch, sensor_size), strict=True):
+            yield start, select_events(events, v > cut)
 
     def _run(
         self,
