@@ -383,6 +383,10 @@ def test_cli_end_to_end(recording, tmp_path, capsys):
     # overrides of the region sizes
     assert main([*argv[:4], "-m", "raw", "--halo-factor", "2"]) == 0
     assert "halo 0" in capsys.readouterr().out  # the halo events lie 10 px out: now background
+    assert main([*argv[:4], "-m", "raw", "--phases", "2", "--window-ms", "2"]) == 0
+    assert "| worst phase |" in capsys.readouterr().out
+    assert main([*argv[:4], "-m", "raw", "--phases", "0"]) == 1
+    assert "phases must be a positive int" in capsys.readouterr().err
 
 
 def test_cli_errors_are_one_line(recording, tmp_path, capsys):
