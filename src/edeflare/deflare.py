@@ -31,6 +31,7 @@ parameters; :func:`create_method` rejects any other name).
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import math
 import os
@@ -389,11 +390,12 @@ class _TwoViewStreamer(Streamer):
         # per view, the logits of the first pending events (those whose window is done)
         self.done: list[np.ndarray] = [np.zeros(0), np.zeros(0)]
 
-    def _advance(self, view: int, until_us: int | None) -> None:
+    def _batches(self, view: int, until_us: int | None) -> list[list[tuple[int, np.ndarray]]]:
+        """The view's complete windows not yet judged, in network batches."""
         w, delay = self.window_us, self.delays[view]
         events = self.pending[self.done[view].size :]
         t = events["t"]
-        batch = []
+        windows = []
         i = 0
         while i < events.size:
             start = (int(t[i]) + delay) // w * w - delay
@@ -401,12 +403,26 @@ class _TwoViewStreamer(Streamer):
             if until_us is not None and end > until_us:
                 break
             k = int(np.searchsorted(t, end, side="left"))
-            batch.append((start, events[i:k]))
+            windows.append((start, events[i:k]))
             i = k
-        values = [self.done[view]]
-        for j in range(0, len(batch), self.batch_windows):
-            values += self.logits(batch[j : j + self.batch_windows])
-        self.done[view] = np.concatenate(values)
+        step = self.batch_windows
+        return [windows[j : j + step] for j in range(0, len(windows), step)]
+
+    def _judge(self, batches: list[list[tuple[int, np.ndarray]]]) -> list[np.ndarray]:
+        return [v for batch in batches for v in self.logits(batch)]
+
+    def _advance(self, until_us: int | None) -> None:
+        work = [self._batches(view, until_us) for view in (0, 1)]
+        if work[0] and work[1]:
+            # the two views are independent: the second runs on another core (the
+            # per-event kernels and the network release the GIL); the results do not
+            # depend on it
+            with concurrent.futures.ThreadPoolExecutor(1) as pool:
+                second = pool.submit(self._judge, work[1])
+                values = [self._judge(work[0]), second.result()]
+        else:
+            values = [self._judge(w) for w in work]
+        self.done = [np.concatenate([d, *v]) for d, v in zip(self.done, values, strict=True)]
 
     def _emit(self) -> np.ndarray:
         n = min(v.size for v in self.done)
@@ -419,13 +435,11 @@ class _TwoViewStreamer(Streamer):
     def process(self, events: np.ndarray, until_us: int) -> np.ndarray:
         if events.size:
             self.pending = concat_events([self.pending, events]) if self.pending.size else events
-        for view in (0, 1):
-            self._advance(view, until_us)
+        self._advance(until_us)
         return self._emit()
 
     def flush(self) -> np.ndarray:
-        for view in (0, 1):
-            self._advance(view, None)
+        self._advance(None)
         return self._emit()
 
 

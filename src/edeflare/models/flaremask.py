@@ -282,17 +282,6 @@ def _frames(width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return _scratch.frames
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _box(total, width, height, xi, yi, r):  # pragma: no cover - compiled
-    """Sum of ``total`` (a ``height x width`` frame, flat) over the square of radius ``r``."""
-    s = 0
-    for yy in range(max(yi - r, 0), min(yi + r + 1, height)):
-        row = yy * width
-        for xx in range(max(xi - r, 0), min(xi + r + 1, width)):
-            s += total[row + xx]
-    return s
-
-
 @numba.njit(cache=True, nogil=True)
 def _count(x, y, p, on, total, width, sign):  # pragma: no cover - compiled
     """Add (``sign`` 1) or remove (-1) the events' counts in the ON and total frames."""
@@ -308,11 +297,39 @@ def _pixel_row(x, y, p, on, total, width, height, i, out):  # pragma: no cover -
     xi, yi = np.int64(x[i]), np.int64(y[i])
     pix = yi * width + xi
     own = on[pix] if p[i] != 0 else total[pix] - on[pix]
-    b3 = _box(total, width, height, xi, yi, 1)
+    # the 5x5 square row by row (contiguous reads), its inner 3x3 on the way
+    b3 = 0
+    b5 = 0
+    x_lo, x_hi = max(xi - 2, 0), min(xi + 3, width)
+    i_lo, i_hi = max(xi - 1, 0), min(xi + 2, width)
+    for yy in range(max(yi - 2, 0), min(yi + 3, height)):
+        row = yy * width
+        for xx in range(x_lo, x_hi):
+            b5 += total[row + xx]
+        if yy - yi <= 1 and yi - yy <= 1:
+            for xx in range(i_lo, i_hi):
+                b3 += total[row + xx]
     out[0] = own
     out[1] = total[pix] - own
     out[2] = b3 - total[pix]
-    out[3] = _box(total, width, height, xi, yi, 2) - b3
+    out[3] = b5 - b3
+
+
+_LOG1P_TABLE = 1024
+"""Counts below this take their log1p from a table (the same values, computed once)."""
+
+
+@numba.njit(cache=True, nogil=True)
+def _log1p_table():  # pragma: no cover - compiled
+    out = np.empty(_LOG1P_TABLE, np.float64)
+    for k in range(_LOG1P_TABLE):
+        out[k] = np.log1p(np.float64(k))
+    return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _log1p_count(k, table):  # pragma: no cover - compiled
+    return table[k] if k < table.size else np.log1p(np.float64(k))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -354,6 +371,7 @@ def _event_logits(
     if hidden:
         _count(x, y, p, on, total, width, 1)
     f = np.empty(4, np.int64)
+    table = _log1p_table()
     out = np.empty(t.size, np.float64)
     for i in range(t.size):
         b = ((np.int64(t[i]) - t0) * bins) // window_us
@@ -372,7 +390,8 @@ def _event_logits(
         )
         if hidden:
             _pixel_row(x, y, p, on, total, width, height, i, f)
-            f0, f1, f2, f3 = np.log1p(f[0]), np.log1p(f[1]), np.log1p(f[2]), np.log1p(f[3])
+            f0, f1 = _log1p_count(f[0], table), _log1p_count(f[1], table)
+            f2, f3 = _log1p_count(f[2], table), _log1p_count(f[3], table)
             delta = 0.0
             for k in range(hidden):
                 a = f0 * w_in[k, 0] + f1 * w_in[k, 1] + f2 * w_in[k, 2] + f3 * w_in[k, 3]
