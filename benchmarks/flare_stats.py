@@ -9,7 +9,8 @@ Measures :func:`edeflare.eval.flare_stats.flare_statistics` on
   stream, :func:`~edeflare.eval.flare_stats.lights_from_events`; the median
   over the folder's sequences is reported),
 
-prints one table (a column per source), writes ``results/flare_stats.json``
+prints one table (a column per source), writes ``results/flare_stats.json`` (or
+``--name``)
 and, with ``--figure``, one picture: a 10 ms window of each, cropped to
 ``--crop`` pixels around the source at the same scale (one sensor pixel, one
 picture pixel).
@@ -111,6 +112,9 @@ def main() -> None:
     parser.add_argument("--figure", type=Path)
     parser.add_argument("--crop", type=int, default=240, help="figure: pixels around the source")
     parser.add_argument("--max-sequences", type=int, default=8)
+    parser.add_argument(
+        "--name", default="flare_stats", help="results/NAME.json (default flare_stats)"
+    )
     args = parser.parse_args()
     stats: dict[str, dict] = {}
     images, labels = [], []
@@ -141,7 +145,7 @@ def main() -> None:
         if per_sequence:
             stats[name] = _median(per_sequence)
     rows = _rows(stats)
-    report("flare_stats", rows, ["statistic", *stats])
+    report(args.name, rows, ["statistic", *stats])
     if args.figure is not None and images:
         save_image(args.figure, grid(images, labels=labels, ncols=len(images)))
         print(f"wrote {args.figure}")
