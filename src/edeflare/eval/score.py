@@ -881,12 +881,11 @@ def score_recording(
     phases : int
         Run each method on the recording delayed by ``k * window_us // phases``
         for ``k = 0 .. phases - 1`` (then undone) and report the mean scores,
-        with the worst phase's combined score. Methods that work on aligned
-        windows (the models, ``voxel``, the PFDs) decide per window, and where
-        a recording's windows start relative to what it shows (a lamp's
-        100 Hz flicker, a moving source) is chance: one phase can flatter or
-        wrong them. Filters that see no windows score the same at every phase.
-        Given files (``preds``) are scored once.
+        with the worst phase's combined score. A model decides per aligned
+        window, and where a recording's windows start relative to what it
+        shows (a lamp's 100 Hz flicker, a moving source) is chance: one phase
+        can flatter or wrong it. Filters that see no windows score the same at
+        every phase. Given files (``preds``) are scored once.
 
     Returns
     -------
