@@ -75,8 +75,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         type=int,
         default=1,
         help="run each method at this many window phases (the recording delayed by "
-        "multiples of window/phases) and report the mean and the worst phase: windowed "
-        "methods (the models, voxel, PFD) can depend on where a recording's windows start",
+        "multiples of window/phases) and report the mean and the worst phase: a model "
+        "decides per aligned window and can depend on where a recording's windows start",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of methods that draw")
     p.add_argument("--report", type=Path, help="write the Markdown table to this file")

@@ -337,6 +337,21 @@ class ModelDeflarer:
         not). An event is kept where its logit exceeds
         :func:`~edeflare.models.flaremask.keep_logit_threshold` of
         :attr:`keep_threshold`.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from edeflare.models import create_model
+        >>> from edeflare.models.weights import ModelCard, save_model
+        >>> from edeflare.events import make_events
+        >>> p = pathlib.Path(tempfile.mkdtemp()) / "m.safetensors"
+        >>> save_model(p, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+        >>> ev = make_events([10, 30], [1, 2], [1, 2], [1, 0])
+        >>> d = ModelDeflarer(p)
+        >>> [v.tolist() for v in d.window_logits([(0, ev[:1]), (5, ev[1:])], (8, 8))]
+        [[0.0], [0.0]]
+        >>> keep_logit_threshold(d.keep_threshold) < 0.0  # untrained: keeps everything
+        True
         """
         net = self.model
         if not isinstance(net, FlareMaskNet):
