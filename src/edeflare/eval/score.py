@@ -937,23 +937,30 @@ def score_recording(
         raise ParameterError(f"phases must be a positive int, got {phases!r}")
     if phases > window_us:
         raise ParameterError(f"phases ({phases}) must be at most window_us ({window_us})")
-    # phase k -> method name -> output (each phase's outputs back on the recording's clock)
-    by_phase: list[dict[str, np.ndarray]] = [{} for _ in range(int(phases))]
-    seconds: dict[str, float] = {}
+    made = {}
     for name in methods:
-        if name in by_phase[0]:
+        if name in made:
             raise ParameterError(f"method {name!r} given twice")
-        method = create_method(name, **dict((method_params or {}).get(name, {})))
-        for k, outputs_k in enumerate(by_phase):
-            delay = k * int(window_us) // int(phases)
+        made[name] = create_method(name, **dict((method_params or {}).get(name, {})))
+    # phase k -> method name -> output (each phase's outputs back on the recording's clock)
+    by_phase: list[dict[str, np.ndarray]] = []
+    seconds: dict[str, float] = {}
+    for k in range(int(phases)):
+        delay = k * int(window_us) // int(phases)
+        delayed = events  # methods never change their input
+        if delay:
             delayed = events.copy()
             delayed["t"] += delay
+        outputs_k = {}
+        for name, method in made.items():
             t0 = time.perf_counter()
             out = method(delayed, size, rng=rng)
             if k == 0:
                 seconds[name] = time.perf_counter() - t0
-            out["t"] -= delay
+            if delay:
+                out["t"] -= delay
             outputs_k[name] = out
+        by_phase.append(outputs_k)
     outputs = by_phase[0]
     for name, path in (preds or {}).items():
         if name in outputs:
