@@ -280,6 +280,19 @@ def test_time_shift_is_a_recorded_option_that_changes_what_is_seen(dataset, tmp_
         train(_config(iterations=8), paths, tmp_path / "b", progress=False)
 
 
+def test_polarity_flip_is_a_recorded_option_that_changes_what_is_seen(dataset, tmp_path):
+    paths = _paths(dataset, "train")
+    plain = train(_config(iterations=4), paths, tmp_path / "a", progress=False)
+    flipped = train(
+        _config(iterations=4, polarity_flip=True), paths, tmp_path / "b", progress=False
+    )
+    assert json.loads((tmp_path / "b" / "config.json").read_text())["polarity_flip"] is True
+    wa, wb = _weights(plain), _weights(flipped)
+    assert any(not torch.equal(wa[k], wb[k]) for k in wa)
+    with pytest.raises(EdeflareError, match=r"other values of \['polarity_flip'\]"):
+        train(_config(iterations=8), paths, tmp_path / "b", progress=False)
+
+
 def test_too_little_data_is_a_clear_error(dataset, tmp_path):
     with pytest.raises(EdeflareError, match="fewer than one global batch"):
         train(_config(batch_size=64), _paths(dataset, "train"), tmp_path / "x", progress=False)

@@ -76,6 +76,7 @@ class TrainConfig:
     crop: tuple[int, int] | None = None  # (height, width) random crops
     flip: bool = False
     time_shift: bool = False  # shift windows by whole bins: no learning where in a window
+    polarity_flip: bool = False  # swap ON and OFF in half the windows
     seed: int = 0
     log_every: int = 10
     val_every: int = 1000
@@ -400,6 +401,7 @@ def train(
         crop=config.crop,
         flip=config.flip,
         time_shift=config.time_shift,
+        polarity_flip=config.polarity_flip,
         seed=config.seed,
         precompute=config.precompute,
     )

@@ -102,6 +102,35 @@ def test_sequences_of_several_sensor_sizes(tmp_path, rng):
         np.testing.assert_array_equal(cached.item(i, 2)[0], ds.item(i, 2)[0])
 
 
+def test_polarity_flip_swaps_on_and_off_of_both_grids_in_half_the_windows(tmp_path, rng):
+    inp, _gt = _sequence(tmp_path / "a.h5", rng)
+    plain = PairedWindows([tmp_path / "a.h5"], crop=(8, 8), flip=True, seed=3)
+    ds = PairedWindows([tmp_path / "a.h5"], crop=(8, 8), flip=True, seed=3, polarity_flip=True)
+    seen = []
+    for epoch in range(16):
+        x, y = ds.item(1, epoch)
+        px, py = plain.item(1, epoch)  # the crop and flips are the plain dataset's draws
+        rng_e = np.random.default_rng((3, epoch, 1))
+        rng_e.integers(0, 5), rng_e.integers(0, 5), rng_e.random(), rng_e.random()
+        negate = rng_e.random() < 0.5
+        seen.append(negate)
+        sign = -1 if negate else 1
+        np.testing.assert_array_equal(x, sign * px)
+        np.testing.assert_array_equal(y, sign * py)
+        assert np.abs(px).sum() > 0 and x.dtype == np.float32
+    assert any(seen) and not all(seen)
+    # by hand: a flipped window is the encoding of the events with ON and OFF swapped
+    full = PairedWindows([tmp_path / "a.h5"], polarity_flip=True, seed=3)
+    # no crop, flips or shift: the negation is the first draw
+    epoch = next(e for e in range(16) if np.random.default_rng((3, e, 1)).random() < 0.5)
+    swapped = inp.copy()
+    swapped["p"] = 1 - swapped["p"]
+    sel = (swapped["t"] >= 1_020_000) & (swapped["t"] < 1_040_000)
+    want = encode(swapped[sel], (16, 12), 1_020_000, 20_000)
+    np.testing.assert_array_equal(full.item(1, epoch)[0][0], want)
+    assert not np.array_equal(want, plain.grids(1)[0])
+
+
 def test_precomputed_grids_equal_on_the_fly(tmp_path, rng):
     _sequence(tmp_path / "a.h5", rng)
     _sequence(tmp_path / "b.h5", rng)

@@ -71,6 +71,13 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "model cannot learn where in its window things happen (a lamp's flicker, a source's "
         "motion start at any phase of a real recording's windows)",
     )
+    p.add_argument(
+        "--polarity-flip",
+        action="store_true",
+        default=None,
+        help="swap ON and OFF in a random half of the training windows (which polarity a "
+        "light's edges and settling pixels fire differs between sensors)",
+    )
     p.add_argument("--seed", type=int)
     p.add_argument("--val-every", type=int)
     p.add_argument("--checkpoint-every", type=int)

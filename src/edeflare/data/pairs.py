@@ -117,6 +117,12 @@ class PairedWindows:
         it shows (a lamp's 100 Hz flicker, a source's motion), so a model
         should not learn where in the window things happen: without the shift
         every training window starts where its sequence does.
+    polarity_flip : bool
+        Random swap of ON and OFF (both grids negated) in half the windows.
+        Which polarity leads a moving light's edge, and which one its pixels
+        keep firing as they settle, differs between sensors and scenes: a
+        brightening edge fires ON, yet the Prophesee Gen3 blob of the real
+        recordings leads with OFF events and settles in ON ones.
     seed : int
         Seeds the augmentations together with the epoch and the index.
     precompute : bool
@@ -147,6 +153,7 @@ class PairedWindows:
         crop: tuple[int, int] | None = None,
         flip: bool = False,
         time_shift: bool = False,
+        polarity_flip: bool = False,
         seed: int = 0,
         precompute: bool = False,
         input_group: str = "input",
@@ -165,6 +172,7 @@ class PairedWindows:
         self.crop = crop
         self.flip = flip
         self.time_shift = time_shift
+        self.polarity_flip = polarity_flip
         # the window that continues each one in its sequence, or -1 (time_shift)
         self._next = np.full(len(self.windows), -1, dtype=np.int64)
         for i, (a, b) in enumerate(itertools.pairwise(self.windows)):
@@ -244,6 +252,7 @@ class PairedWindows:
         flips = (rng.random() < 0.5, rng.random() < 0.5) if self.flip else (False, False)
         # drawn last, so the draws above are those of a dataset without the shift
         shift = int(rng.integers(0, self.bins)) if self.time_shift else 0
+        negate = bool(rng.random() < 0.5) if self.polarity_flip else False  # drawn last too
         if shift and self._next[index] >= 0:
             nx, ny = self.grids(int(self._next[index]))
             x = np.concatenate([x[shift:], nx[:shift]])
@@ -256,6 +265,8 @@ class PairedWindows:
             x, y = x[:, :, ::-1], y[:, :, ::-1]
         if flips[1]:
             x, y = x[:, ::-1, :], y[:, ::-1, :]
+        if negate:
+            x, y = -x, -y
         return np.ascontiguousarray(x)[None], np.ascontiguousarray(y)[None]
 
     def __getstate__(self) -> dict[str, object]:  # open HDF5 handles do not pickle
