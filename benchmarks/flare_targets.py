@@ -59,7 +59,8 @@ metrics' normalised space: 1 unit = 1 % of the window's span, width or height)."
 
 def _dataset(folder: Path, recipe_name: str, **changes: Any) -> list[Path]:
     """The test files of ``folder``, simulated first when absent (resumes if cut short)."""
-    if not list_sequences(folder / "test") or not (folder / "manifest.json").is_file():
+    done = (folder / "manifest.json").is_file() and (folder / "test").is_dir()
+    if not done or not list_sequences(folder / "test"):
         print(f"simulating {recipe_name} into {folder} ...", flush=True)
         generate_dataset(RECIPES[recipe_name].replace(**changes), folder, workers=2)
     return list_sequences(folder / "test")
