@@ -160,6 +160,12 @@ def test_demo_writes_everything(tmp_path, capsys):
     kept = np.isin(key(inp), key(read_events(out / "E-DeflareNet.h5").events))
     assert (~is_gt).mean() > 0.1  # flare to remove: 15 %
     assert 1 - kept[~is_gt].mean() > 0.95 and kept[is_gt].mean() > 0.8  # 98.0 %, 90.7 %
+    # the same shares, in the summary and the table (the input itself removes nothing)
+    assert summary["flare_removed"]["E-DeflareNet"] == round(1 - kept[~is_gt].mean(), 4)
+    assert summary["true_kept"]["E-DeflareNet"] == round(kept[is_gt].mean(), 4)
+    assert summary["flare_removed"]["raw"] == 0.0 and summary["true_kept"]["raw"] == 1.0
+    shares_row = f"| E-DeflareNet | {100 * (1 - kept[~is_gt].mean()):.1f} % |"
+    assert shares_row in (out / "metrics.md").read_text()
     assert events["pfd-b"] < events["input"] and events["efr"] < events["input"]
     assert "| E-DeflareNet |" in (out / "metrics.md").read_text()
     assert summary["scene"]["sensor_size"] == [346, 260]

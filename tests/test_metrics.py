@@ -13,6 +13,7 @@ from edeflare.eval.metrics import (
     METRICS,
     SIGMA,
     chamfer_distance,
+    deletion_shares,
     event_distances,
     f1_score,
     f1_scores,
@@ -253,3 +254,17 @@ def test_keep_only_oracle_empty_and_window_alignment():
         keep_only_oracle(inp[::-1].copy(), gt, (16, 16))
     with pytest.raises(EventsError, match="out of range"):
         keep_only_oracle(inp, gt, (4, 4))
+
+
+def test_deletion_shares_by_hand():
+    inp = make_events([0, 5, 5, 9, 12], [1, 2, 2, 3, 0], [0, 0, 0, 1, 1], [1, 1, 0, 0, 1])
+    gt = inp[[0, 2, 4]]  # events 1 and 3 are flare
+    out = inp[[0, 1, 4]]  # removes one of the two flare events, keeps two of three true
+    removed, kept = deletion_shares(inp, gt, out, (4, 2))
+    assert removed == 0.5 and kept == pytest.approx(2 / 3)
+    assert deletion_shares(inp, gt, inp, (4, 2)) == (0.0, 1.0)  # the input itself
+    assert deletion_shares(inp, gt, inp[:0], (4, 2)) == (1.0, 0.0)  # nothing left
+    removed, kept = deletion_shares(inp, inp, inp[[0]], (4, 2))  # no flare at all
+    assert math.isnan(removed) and kept == 0.2
+    with pytest.raises(EventsError, match="sorted"):
+        deletion_shares(inp, gt, out[::-1], (4, 2))

@@ -19,7 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .errors import EdeflareError
-from .events import slice_time
+from .events import event_keys, slice_time
 from .io import write_events
 from .io._atomic import atomic_path
 from .viz import event_frame, grid, save_animation, save_image, voxel_montage
@@ -63,6 +63,27 @@ def _demo_methods() -> dict[str, Any]:
     return methods
 
 
+def _shares_markdown(shares: dict[str, tuple[float, float] | None]) -> str:
+    """The per-method shares of flare removed and true events kept, as a Markdown table
+    (None: a method that moves or adds events, whose shares an event-for-event count
+    cannot give)."""
+    lines = [
+        "What the methods that only delete events did to the input's events "
+        "(`edeflare.eval.metrics.deletion_shares`):",
+        "",
+        "| Method | flare events removed | true events kept |",
+        "|---|---|---|",
+    ]
+    for name, v in shares.items():
+        cells = (
+            ("moves or adds events", "-")
+            if v is None
+            else (f"{100 * v[0]:.1f} %", f"{100 * v[1]:.1f} %")
+        )
+        lines.append(f"| {name} | {cells[0]} | {cells[1]} |")
+    return "\n".join(lines) + "\n"
+
+
 def _write_text(path: Path, text: str) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
@@ -88,10 +109,14 @@ def run_demo(
     ``comparison.png`` (rows: 20 ms windows; columns: input, each method,
     ground truth), ``comparison.gif``, ``voxels.png`` (the input's 8 bins),
     ``metrics.md`` / ``metrics.json`` (the paper's table over the scene's
-    20 ms segments) and ``summary.json``. Returns artefact name -> path.
+    20 ms segments; ``metrics.md`` also says, per method, the share of the flare
+    events removed and of the true events kept,
+    :func:`~edeflare.eval.metrics.deletion_shares`) and ``summary.json`` (event
+    counts and those shares). Returns artefact name -> path.
     """
     from .data.generate import RECIPES, generate_sequence
     from .eval.evaluate import evaluate_streams, summarize
+    from .eval.metrics import deletion_shares
     from .eval.tables import ResultsTable
 
     out = Path(out_dir)
@@ -114,6 +139,13 @@ def run_demo(
         segments = evaluate_streams(gt, events, size, window_us=window, start_us=start, end_us=end)
         summaries[name] = summarize(m for _, m in segments)
     table = ResultsTable({name: s.means for name, s in summaries.items()})
+    input_keys = event_keys(inp, size)
+    shares = {  # for the methods that only delete events: the others move or add some
+        name: deletion_shares(inp, gt, events, size)
+        if np.isin(event_keys(events, size), input_keys).all()
+        else None
+        for name, events in outputs.items()
+    }
     columns = ["input (flare)", *[n for n in outputs if n != "raw"], "ground truth"]
     streams = [inp, *[outputs[n] for n in outputs if n != "raw"], gt]
     frames, cells, row_labels = [], [], []
@@ -135,7 +167,7 @@ def run_demo(
     save_animation(paths["animation"], frames, fps=4)
     first = slice_time(inp, start, start + window)
     save_image(paths["voxels"], voxel_montage(encode(first, size, start, window), ncols=4))
-    _write_text(out / "metrics.md", table.to_markdown())
+    _write_text(out / "metrics.md", table.to_markdown() + "\n" + _shares_markdown(shares))
     _write_text(out / "metrics.json", table.to_json())
     summary = {
         "scene": {
@@ -150,6 +182,8 @@ def run_demo(
             "ground_truth": int(gt.size),
             **{n: int(e.size) for n, e in outputs.items()},
         },
+        "flare_removed": {n: None if v is None else round(v[0], 4) for n, v in shares.items()},
+        "true_kept": {n: None if v is None else round(v[1], 4) for n, v in shares.items()},
         **{k: str(v) for k, v in paths.items()},
     }
     _write_text(out / "summary.json", json.dumps(summary, indent=2))

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import EventsError
-from ..events import SensorSize, check_events, check_sensor_size, window_start_for
+from ..events import SensorSize, check_events, check_sensor_size, event_keys, window_start_for
 from ..voxel import encode_polarity
 
 __all__ = [
@@ -43,6 +43,7 @@ __all__ = [
     "SIGMA",
     "THRESHOLD",
     "chamfer_distance",
+    "deletion_shares",
     "event_distances",
     "f1_score",
     "f1_scores",
@@ -161,6 +162,52 @@ def event_distances(
         events_gt, events_pred, sensor_size, window_start_us, window_us, workers=workers
     )
     return float(d.mean()), float(np.mean(-np.expm1(-(d * d) / sigma)))
+
+
+def deletion_shares(
+    events_in: np.ndarray,
+    events_gt: np.ndarray,
+    events_out: np.ndarray,
+    sensor_size: SensorSize,
+) -> tuple[float, float]:
+    """What a de-flarer removed of the flare and kept of the scene, event for event.
+
+    For pairs whose ground truth is a subset of the input (keep-only targets, as the
+    ``eflare-night`` recipe writes them): the input's events missing from the
+    ground truth are flare, the others true. An event counts as kept where the
+    output holds the same ``(t, x, y, p)``, so a method that moves or synthesises
+    events (voxel decoding, EFR) loses the ones it moved. The paper's metrics
+    compare distributions; these two numbers say what happened to the scene, which
+    a dense light can hide from them.
+
+    Returns
+    -------
+    (float, float)
+        The share of the input's flare events absent from the output, and the
+        share of its true events present in it (NaN where there are none).
+
+    Raises
+    ------
+    EventsError
+        A stream that is not sorted in time, or lies off the sensor.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> inp = make_events([0, 1, 2, 3], [0, 1, 2, 3], [0, 0, 0, 0], [1, 1, 0, 0])
+    >>> gt, out = inp[[0, 1, 2]], inp[[0, 3]]  # 1 flare event; kept 1 of 3 true ones
+    >>> removed, kept = deletion_shares(inp, gt, out, (4, 1))
+    >>> removed, round(kept, 3)
+    (0.0, 0.333)
+    """
+    for ev in (events_in, events_gt, events_out):
+        check_events(ev, sensor_size)
+    keys_in = event_keys(events_in, sensor_size)
+    is_true = np.isin(keys_in, event_keys(events_gt, sensor_size))
+    kept = np.isin(keys_in, event_keys(events_out, sensor_size))
+    flare_removed = float(1 - kept[~is_true].mean()) if (~is_true).any() else math.nan
+    true_kept = float(kept[is_true].mean()) if is_true.any() else math.nan
+    return flare_removed, true_kept
 
 
 def keep_only_oracle(
