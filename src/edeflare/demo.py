@@ -19,7 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .errors import EdeflareError
-from .events import event_keys, slice_time
+from .events import slice_time
 from .io import write_events
 from .io._atomic import atomic_path
 from .viz import event_frame, grid, save_animation, save_image, voxel_montage
@@ -139,13 +139,7 @@ def run_demo(
         segments = evaluate_streams(gt, events, size, window_us=window, start_us=start, end_us=end)
         summaries[name] = summarize(m for _, m in segments)
     table = ResultsTable({name: s.means for name, s in summaries.items()})
-    input_keys = event_keys(inp, size)
-    shares = {  # for the methods that only delete events: the others move or add some
-        name: deletion_shares(inp, gt, events, size)
-        if np.isin(event_keys(events, size), input_keys).all()
-        else None
-        for name, events in outputs.items()
-    }
+    shares = {name: deletion_shares(inp, gt, events, size) for name, events in outputs.items()}
     columns = ["input (flare)", *[n for n in outputs if n != "raw"], "ground truth"]
     streams = [inp, *[outputs[n] for n in outputs if n != "raw"], gt]
     frames, cells, row_labels = [], [], []

@@ -169,22 +169,24 @@ def deletion_shares(
     events_gt: np.ndarray,
     events_out: np.ndarray,
     sensor_size: SensorSize,
-) -> tuple[float, float]:
+) -> tuple[float, float] | None:
     """What a de-flarer removed of the flare and kept of the scene, event for event.
 
     For pairs whose ground truth is a subset of the input (keep-only targets, as the
     ``eflare-night`` recipe writes them): the input's events missing from the
     ground truth are flare, the others true. An event counts as kept where the
-    output holds the same ``(t, x, y, p)``, so a method that moves or synthesises
-    events (voxel decoding, EFR) loses the ones it moved. The paper's metrics
+    output holds the same ``(t, x, y, p)``; this is defined for methods that only
+    delete events, so an output holding an event the input lacks (voxel decoding
+    and EFR move events) gets None. The paper's metrics
     compare distributions; these two numbers say what happened to the scene, which
     a dense light can hide from them.
 
     Returns
     -------
-    (float, float)
+    (float, float) or None
         The share of the input's flare events absent from the output, and the
-        share of its true events present in it (NaN where there are none).
+        share of its true events present in it (NaN where there are none); None
+        for an output that is not a subset of the input.
 
     Raises
     ------
@@ -199,12 +201,16 @@ def deletion_shares(
     >>> removed, kept = deletion_shares(inp, gt, out, (4, 1))
     >>> removed, round(kept, 3)
     (0.0, 0.333)
+    >>> print(deletion_shares(inp, gt, make_events([1], [0], [0], [1]), (4, 1)))  # moved
+    None
     """
     for ev in (events_in, events_gt, events_out):
         check_events(ev, sensor_size)
-    keys_in = event_keys(events_in, sensor_size)
+    keys_in, keys_out = event_keys(events_in, sensor_size), event_keys(events_out, sensor_size)
+    if not np.isin(keys_out, keys_in).all():
+        return None
     is_true = np.isin(keys_in, event_keys(events_gt, sensor_size))
-    kept = np.isin(keys_in, event_keys(events_out, sensor_size))
+    kept = np.isin(keys_in, keys_out)
     flare_removed = float(1 - kept[~is_true].mean()) if (~is_true).any() else math.nan
     true_kept = float(kept[is_true].mean()) if is_true.any() else math.nan
     return flare_removed, true_kept
