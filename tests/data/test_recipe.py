@@ -22,7 +22,10 @@ DIGESTS_BEFORE_THE_SPLIT = {
 }
 # eflare-night changed on purpose after the split (hot pixels to remove, 2026-11-25); its
 # digest then (d00bcb15...) is the old recipe's. Pinned so that it changes only on purpose.
-DIGESTS_SINCE = {"eflare-night": "3da4706a3e07b77dc7b655b4237a6c2e85f4208724c3d7197f126a0195c8b142"}
+DIGESTS_SINCE = {
+    "eflare-night": "3da4706a3e07b77dc7b655b4237a6c2e85f4208724c3d7197f126a0195c8b142",
+    "eflare-night-sparse": "beff5735ac634792174a6b828af05bd7315012a4c5a2bd81cec4e5e47d155c6d",
+}
 FLAT_BEFORE_THE_SPLIT = {  # old flat dicts and their digests at dc60cee
     "beb8317d7f81eae1f72cbec6bb35a8ea0cd893ed86e8fa218429ef07143b33c2": {
         "variant": "forward",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,8 @@ from edeflare.errors import ParameterError
 from edeflare.events import EVENT_DTYPE, make_events
 from edeflare.io.dsec import read_dsec
 from edeflare.sim.background import SceneConfig
-from edeflare.sim.sensing import SensingConfig, sparse_sensing
+from edeflare.sim.flare import GhostSpec
+from edeflare.sim.sensing import SensingConfig, in_ghosts, sparse_sensing
 
 SIZE = (200, 150)
 CX, CY = 100, 75
@@ -149,3 +152,46 @@ def test_hot_pixels_join_the_input_not_the_target_and_are_off_by_default(rng):
     assert "hot_pixels" not in base.to_dict() and cfg.to_dict()["hot_pixels"] == [3, 3]
     with pytest.raises(ParameterError, match="hot_pixels must satisfy"):
         SensingConfig(hot_pixels=(4, 2))
+
+
+def test_ghost_events_survive_at_their_own_rate_wherever_they_lie(rng):
+    """A 9x9 source at (40, 40) of the 200x150 sensor; its ghost k = -1 (radius 10)
+    mirrors it through the centre (99.5, 74.5) to (159, 109), 135 px away, where
+    scattered light's survival ``q (2 r / d) ** 2`` is below 1e-3 of ``q``."""
+    xs, ys = np.meshgrid(np.arange(36, 45), np.arange(36, 45))
+    ts = np.repeat(np.arange(20) * 1000, xs.size)
+    light = _events(ts, np.tile(xs.ravel(), 20), np.tile(ys.ravel(), 20), np.ones(ts.size, int))
+    n = 60_000
+    flare = np.unique(_events(rng.integers(0, 20_000, n), rng.integers(0, SIZE[0], n),
+                              rng.integers(0, SIZE[1], n), rng.integers(0, 2, n)))  # fmt: skip
+    inp = np.concatenate([flare, light])
+    streams = {"input": inp[np.argsort(inp["t"], kind="stable")], "gt": light[:0],
+               "flare": flare, "light": light}  # fmt: skip
+    ghost = GhostSpec(k=-1.0, radius_px=10.0, level=5.0, softness=0.1, fringe=0.0)
+    d_ghost = np.hypot(flare["x"] - 159.0, flare["y"] - 109.0)
+    inside, outside = flare[d_ghost <= 10.0], flare[(d_ghost > 13.0) & _far(flare, 100, np.inf)]
+    assert inside.size > 400 and outside.size > 5000
+    base = SensingConfig(survival=(0.5, 0.5), noise_rate=(0.0, 0.0))
+    cfg = dataclasses.replace(base, ghost_survival=(0.3, 0.3))
+    for config, expected in ((base, 0.0), (cfg, 0.3)):
+        out = sparse_sensing(streams, SIZE, 0, config, rng=2, ghosts=[ghost])
+        share = _member(inside, out["input"]).mean()
+        assert abs(share - expected) < 0.06, (config.ghost_survival, share)
+        assert _member(outside, out["input"]).mean() < 0.03  # scattered light, far: thinned
+        assert not _member(inside, out["gt"]).any()  # ghost events are flare: to remove
+    # without the ghosts given, or off (the default, absent from the recipe's dict)
+    same = sparse_sensing(streams, SIZE, 0, cfg, rng=2)
+    assert _member(inside, same["input"]).mean() < 0.01
+    assert "ghost_survival" not in base.to_dict() and cfg.to_dict()["ghost_survival"] == [0.3, 0.3]
+    with pytest.raises(ParameterError, match="ghost_survival must be"):
+        SensingConfig(ghost_survival=(0.0, 0.2))
+
+
+def test_in_ghosts_follows_the_moving_source_through_the_centre():
+    ghost = GhostSpec(k=-2.0, radius_px=3.0, level=1.0, softness=0.01, fringe=0.0)
+    # the source moves from (60, 40) to (80, 40) over 10 ms on a 101x81 sensor (centre
+    # (50, 40)): its ghost from (30, 40) to (-10, 40), at (10, 40) halfway
+    track = (np.array([0.0, 10_000.0]), np.array([60.0, 80.0]), np.array([40.0, 40.0]))
+    ev = make_events([0, 5_000, 5_000, 10_000], [30, 10, 30, 0], [40, 40, 40, 40], [1, 1, 1, 1])
+    assert in_ghosts(ev, track, [ghost], (101, 81)).tolist() == [True, True, False, False]
+    assert not in_ghosts(ev, track, [], (101, 81)).any()

@@ -35,7 +35,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "--recipe",
         default="eflare-mini",
         help="eflare-2.7k (the paper's: 544 x 100 ms at 640x480), eflare-mini (120 at 346x260), "
-        "eflare-night (180 at 346x260, calibrated on real night recordings); test sets: "
+        "eflare-night (180 at 346x260, calibrated on real night recordings), eflare-night-sparse "
+        "(the same with sparse backgrounds and ghosts sensed at their own rate); test sets: "
         "eflare-r-sim (30 at 640x480), eflare-r-sim-mini (20 at 346x260), "
         "dsec-flare (15 DSEC windows of 100 ms at 640x480, needs --dsec-root)",
     )

@@ -273,6 +273,7 @@ def flare_sequence(
             config.sensing,
             rng=(recipe.seed, index, SENSING_STREAM),
             t_end_us=recipe.duration_us,
+            ghosts=inputs.script.ghosts,
         )
     return KindSequence(
         streams, inputs.script, inputs.background.description, timer.seconds, pair.components

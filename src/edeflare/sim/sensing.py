@@ -26,7 +26,16 @@ measured statistics on a simulated pair, per sequence:
    log-uniform in ``noise_rate`` (events per pixel per second) join the input
    and the target: real scenes hold scattered events far from any light (noise,
    flicker on texture), which a de-flarer must not learn to delete.
-5. **Hot pixels to remove** (off unless ``hot_pixels`` is above ``(0, 0)``): a
+5. **Ghosts are sensed at their own rate** (off unless ``ghost_survival`` is above
+   ``(0, 0)`` and the sequence's ghosts are given): a flare event inside one of the
+   reflective ghosts' discs (centre ``c + k (L - c)`` through the image centre ``c``,
+   the source's centre ``L`` interpolated in time between steps) survives with
+   probability ``q_ghost``, log-uniform in ``ghost_survival`` per sequence, whatever
+   its distance from the source. A ghost is an image of the source, lit by it and
+   not by light that thins out with distance: real recordings show ghost rings of
+   sparse events hundreds of pixels from the source (``../shared/reference/
+   real_flare_example.png``), where step 1 would leave almost none.
+6. **Hot pixels to remove** (off unless ``hot_pixels`` is above ``(0, 0)``): a
    number of pixels uniform in ``hot_pixels`` each fire at a rate log-uniform in
    ``hot_rate`` (events per second), almost all of one polarity (ON for three in
    four pixels), as the Prophesee Gen3 recording's seven hot pixels do (5-66 k
@@ -57,7 +66,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -65,8 +74,9 @@ from scipy import ndimage
 
 from ..errors import ParameterError
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, event_keys
+from .flare import GhostSpec
 
-__all__ = ["SensingConfig", "sparse_sensing"]
+__all__ = ["SensingConfig", "in_ghosts", "sparse_sensing"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,9 +97,17 @@ class SensingConfig:
     step_us: int = 10_000
     hot_pixels: tuple[int, int] = (0, 0)
     hot_rate: tuple[float, float] = (1_000.0, 50_000.0)
+    ghost_survival: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "survival", tuple(float(v) for v in self.survival))
+        object.__setattr__(self, "ghost_survival", tuple(float(v) for v in self.ghost_survival))
+        lo, hi = self.ghost_survival
+        if not ((lo == hi == 0.0) or 0 < lo <= hi <= 1):
+            raise ParameterError(
+                "ghost_survival must be (0, 0) (off) or 0 < low <= high <= 1, "
+                f"got {self.ghost_survival}"
+            )
         object.__setattr__(self, "noise_rate", tuple(float(v) for v in self.noise_rate))
         object.__setattr__(self, "hot_rate", tuple(float(v) for v in self.hot_rate))
         try:
@@ -128,11 +146,13 @@ class SensingConfig:
         return cls(**dict(data))
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict (without the hot-pixel keys while that step is off, so
-        recipes keep the dicts and digests they had before it existed)."""
+        """A JSON-ready dict (without the hot-pixel and ghost keys while those steps are
+        off, so recipes keep the dicts and digests they had before they existed)."""
         d = {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
         if self.hot_pixels == (0, 0):
             del d["hot_pixels"], d["hot_rate"]
+        if self.ghost_survival == (0.0, 0.0):
+            del d["ghost_survival"]
         return d
 
 
@@ -162,6 +182,61 @@ def _hot_pixel_events(
     return np.concatenate(parts) if parts else np.empty(0, dtype=EVENT_DTYPE)
 
 
+def in_ghosts(
+    events: np.ndarray,
+    track: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ghosts: Sequence[GhostSpec],
+    sensor_size: SensorSize,
+) -> np.ndarray:
+    """Which events lie inside a reflective ghost's disc of a moving source.
+
+    Ghost ``g`` of a source at ``L`` is centred at ``c + g.k (L - c)`` (``c`` the image
+    centre, as :func:`edeflare.sim.flare.render_ghosts` draws it); its reach is its
+    radius widened by its colour fringe and soft edge, plus one pixel.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        Structured events.
+    track : (t_us, x, y)
+        The source's centre at increasing times; linearly interpolated at each event's
+        time (held at the ends).
+    ghosts : sequence of GhostSpec
+    sensor_size : (width, height)
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean mask over ``events`` (all False without ghosts or track).
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> from edeflare.sim.flare import GhostSpec
+    >>> ev = make_events([0, 0], [20, 60], [10, 10], [1, 1])
+    >>> track = (np.array([0.0]), np.array([60.0]), np.array([29.5]))   # source right of centre
+    >>> in_ghosts(ev, track, [GhostSpec(k=-1.0, radius_px=4, level=1)], (80, 60)).tolist()
+    [False, False]
+    >>> track = (np.array([0.0]), np.array([59.0]), np.array([49.0]))   # its mirror is (20, 10)
+    >>> in_ghosts(ev, track, [GhostSpec(k=-1.0, radius_px=4, level=1)], (80, 60)).tolist()
+    [True, False]
+    """
+    width, height = check_sensor_size(sensor_size)
+    t_track, x_track, y_track = (np.asarray(v, dtype=np.float64) for v in track)
+    inside = np.zeros(events.size, dtype=bool)
+    if not events.size or not t_track.size or not ghosts:
+        return inside
+    t = events["t"].astype(np.float64)
+    lx, ly = np.interp(t, t_track, x_track), np.interp(t, t_track, y_track)
+    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+    ex, ey = events["x"].astype(np.float64), events["y"].astype(np.float64)
+    for g in ghosts:
+        reach = g.radius_px * (1.0 + 0.5 * g.fringe + g.softness) + 1.0
+        gx, gy = cx + g.k * (lx - cx), cy + g.k * (ly - cy)
+        inside |= np.hypot(ex - gx, ey - gy) <= reach
+    return inside
+
+
 def sparse_sensing(
     streams: Mapping[str, np.ndarray],
     sensor_size: SensorSize,
@@ -170,6 +245,7 @@ def sparse_sensing(
     rng: np.random.Generator | int | tuple[int, ...],
     *,
     t_end_us: int | None = None,
+    ghosts: Sequence[GhostSpec] = (),
 ) -> dict[str, np.ndarray]:
     """Apply the sparse-sensing stage to one simulated sequence (see the module docstring).
 
@@ -184,6 +260,8 @@ def sparse_sensing(
     rng : numpy.random.Generator or seed
     t_end_us : int, optional
         End of the sequence, for the background activity (default: the input's last event).
+    ghosts : sequence of GhostSpec
+        The sequence's reflective ghosts (its script's), for step 5.
 
     Returns
     -------
@@ -199,6 +277,8 @@ def sparse_sensing(
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     inp, light = streams["input"], streams["light"]
     q = _log_uniform(gen, *config.survival)
+    ghosts_on = config.ghost_survival[1] > 0 and len(ghosts) > 0
+    q_ghost = _log_uniform(gen, *config.ghost_survival) if ghosts_on else 0.0
     is_flare = np.isin(event_keys(inp, size), event_keys(streams["flare"], size))
     step = (inp["t"].astype(np.int64) - int(t_start_us)) // config.step_us
     light_step = (light["t"].astype(np.int64) - int(t_start_us)) // config.step_us
@@ -226,6 +306,10 @@ def sparse_sensing(
         s = np.clip(step, 0, cx.size - 1)
         d = np.hypot(inp["x"] - cx[at][s], inp["y"] - cy[at][s])
         survival *= np.minimum(1.0, (2 * radius[at][s] / np.maximum(d, 1e-6)) ** config.falloff)
+    if ghosts_on and known.any():
+        t_mid = int(t_start_us) + (np.flatnonzero(known) + 0.5) * config.step_us
+        track = (t_mid, cx[known], cy[known])
+        survival[is_flare & in_ghosts(inp, track, ghosts, size)] = q_ghost
     drop = is_flare & ~near & (gen.random(inp.size) >= survival)
     kept = inp[~drop]
     restored = light[~np.isin(event_keys(light, size), event_keys(kept, size))]
