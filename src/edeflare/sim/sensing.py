@@ -30,8 +30,8 @@ measured statistics on a simulated pair, per sequence:
    ``(0, 0)`` and the sequence's ghosts are given): a flare event inside one of the
    reflective ghosts' discs (centre ``c + k (L - c)`` through the image centre ``c``,
    the source's centre ``L`` interpolated in time between steps) survives with
-   probability ``q_ghost``, log-uniform in ``ghost_survival`` per sequence, whatever
-   its distance from the source. A ghost is an image of the source, lit by it and
+   probability ``q_ghost``, log-uniform in ``ghost_survival`` per sequence, in place
+   of step 1's, whatever its distance from the source. A ghost is an image of the source, lit by it and
    not by light that thins out with distance: real recordings show ghost rings of
    sparse events hundreds of pixels from the source (``../shared/reference/
    real_flare_example.png``), where step 1 would leave almost none.
@@ -163,7 +163,7 @@ def _log_uniform(gen: np.random.Generator, lo: float, hi: float) -> float:
 def _hot_pixel_events(
     gen: np.random.Generator, config: SensingConfig, size: SensorSize, t0: int, t1: int
 ) -> np.ndarray:
-    """Step 5: the hot pixels' events (none, and no draws, while the step is off)."""
+    """Step 6: the hot pixels' events (none, and no draws, while the step is off)."""
     lo, hi = config.hot_pixels
     if hi == 0:
         return np.empty(0, dtype=EVENT_DTYPE)

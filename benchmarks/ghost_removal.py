@@ -1,0 +1,116 @@
+"""Ghost rings and scattered light, simulated as real sensors record them: what each
+method removes (issue "Real flare", 13).
+
+The test set is ``eflare-night-sparse`` at 640x480 (8 sequences, seed 4242; simulated
+into ``--data`` first when absent, about 5 minutes on 2 cores): sparse night
+backgrounds, ghosts sensed at their own rate wherever they land, keep-only targets.
+Each sequence's events to drop (the input's events missing from ``gt``) are split into
+those inside a ghost's disc (:func:`edeflare.sim.sensing.in_ghosts`, from the script's
+ghosts and the source's centre per 10 ms) and the others (scattered light, hot pixels).
+Per method: the share of the ghost events dropped, of the other events to drop dropped,
+of the events to keep kept (means over the sequences holding at least 100 events of the
+kind; one huge light can hold most of the pooled events) and the harmonic mean of the
+three. The reference is dv-processing's ``FastDecayNoiseFilter`` (dv-fastdecay), the
+filter users already run, which removes the ghost ring of
+``../shared/reference/real_flare_example.png``. Prints the table and writes
+``results/ghost_removal.json``. Run::
+
+    python benchmarks/ghost_removal.py [--model WEIGHTS] [--data DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+from _common import report
+
+from edeflare.data.generate import generate_dataset
+from edeflare.data.recipe import RECIPES
+from edeflare.deflare import create_method
+from edeflare.events import event_keys
+from edeflare.io.dsec import read_dsec
+from edeflare.io.sequence import list_sequences
+from edeflare.sim.flare import GhostSpec
+from edeflare.sim.sensing import in_ghosts
+
+METHODS = ("raw", "model", "dv-fastdecay", "dv-bafilter", "dv-knoise", "pfd-a")
+REFERENCE = "dv-fastdecay"
+MIN_EVENTS = 100
+"""A sequence counts for a kind's mean where it holds at least this many of its events."""
+
+
+def source_track(light: np.ndarray, step_us: int = 10_000) -> tuple[np.ndarray, ...]:
+    """The source's centre per ``step_us`` (steps with at least 20 of its events), as
+    the sparse-sensing stage finds it: ``(t_mid_us, x, y)``."""
+    step = light["t"].astype(np.int64) // step_us
+    t, x, y = [], [], []
+    for k in np.unique(step):
+        ev = light[step == k]
+        if ev.size >= 20:
+            t.append((k + 0.5) * step_us)
+            x.append(ev["x"].mean())
+            y.append(ev["y"].mean())
+    return np.array(t, float), np.array(x, float), np.array(y, float)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--model", help="weights for the model row (default: the bundled)")
+    parser.add_argument("--data", type=Path, default=Path(__file__).parent / ".data")
+    args = parser.parse_args()
+    folder = args.data / "eflare-night-sparse-640x480"
+    if not (folder / "manifest.json").is_file() or not list_sequences(folder / "test"):
+        print(f"simulating eflare-night-sparse into {folder} ...", flush=True)
+        recipe = RECIPES["eflare-night-sparse"].replace(
+            sequences=8, test_sequences=8, sensor_size=(640, 480), seed=4242
+        )
+        generate_dataset(recipe, folder, workers=2)
+    methods = {
+        m: create_method(m, **({"weights": args.model} if m == "model" and args.model else {}))
+        for m in METHODS
+    }
+    shares: dict[str, dict[str, list[float]]] = {
+        m: {"ghost": [], "other": [], "keep": []} for m in METHODS
+    }
+    counts = {"ghost": 0, "other": 0, "keep": 0}
+    for seq in list_sequences(folder / "test"):
+        inp, size = read_dsec(seq, "input")
+        gt, _ = read_dsec(seq, "gt")
+        light, _ = read_dsec(seq, "light")
+        with h5py.File(seq) as f:
+            ghosts = [GhostSpec(**g) for g in json.loads(f.attrs["script"])["ghosts"]]
+        keys = event_keys(inp, size)
+        keep = np.isin(keys, event_keys(gt, size))
+        ghost = in_ghosts(inp, source_track(light), ghosts, size)
+        kinds = {"ghost": ~keep & ghost, "other": ~keep & ~ghost, "keep": keep}
+        for kind, sel in kinds.items():
+            counts[kind] += int(sel.sum())
+        for name, method in methods.items():
+            kept = np.isin(keys, event_keys(method(inp, size, rng=0), size))
+            for kind, sel in kinds.items():
+                if sel.sum() >= MIN_EVENTS:
+                    hit = kept[sel] if kind == "keep" else ~kept[sel]
+                    shares[name][kind].append(float(hit.mean()))
+        print(
+            f"{seq.name}: {', '.join(f'{k} {int(v.sum())}' for k, v in kinds.items())}", flush=True
+        )
+    rows = []
+    for name in METHODS:
+        g, o, k = (float(np.mean(shares[name][kind])) for kind in ("ghost", "other", "keep"))
+        hm = 3 / (1 / max(g, 1e-9) + 1 / max(o, 1e-9) + 1 / max(k, 1e-9))
+        rows.append({"method": name, "ghost dropped": round(g, 3),
+                     "other flare dropped": round(o, 3), "kept": round(k, 3),
+                     "harmonic mean": round(hm, 3)})  # fmt: skip
+    ref = next(r for r in rows if r["method"] == REFERENCE)["harmonic mean"]
+    for r in rows:
+        r[f"/ {REFERENCE}"] = round(r["harmonic mean"] / ref, 3) if ref else float("nan")
+    print(f"events: {counts}; sequences: {len(list_sequences(folder / 'test'))}")
+    report("ghost_removal", rows, list(rows[0]))
+
+
+if __name__ == "__main__":
+    main()
