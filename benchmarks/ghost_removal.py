@@ -35,26 +35,12 @@ from edeflare.events import event_keys
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
 from edeflare.sim.flare import GhostSpec
-from edeflare.sim.sensing import in_ghosts
+from edeflare.sim.sensing import in_ghosts, source_track
 
 METHODS = ("raw", "model", "dv-fastdecay", "dv-bafilter", "dv-knoise", "pfd-a")
 REFERENCE = "dv-fastdecay"
 MIN_EVENTS = 100
 """A sequence counts for a kind's mean where it holds at least this many of its events."""
-
-
-def source_track(light: np.ndarray, step_us: int = 10_000) -> tuple[np.ndarray, ...]:
-    """The source's centre per ``step_us`` (steps with at least 20 of its events), as
-    the sparse-sensing stage finds it: ``(t_mid_us, x, y)``."""
-    step = light["t"].astype(np.int64) // step_us
-    t, x, y = [], [], []
-    for k in np.unique(step):
-        ev = light[step == k]
-        if ev.size >= 20:
-            t.append((k + 0.5) * step_us)
-            x.append(ev["x"].mean())
-            y.append(ev["y"].mean())
-    return np.array(t, float), np.array(x, float), np.array(y, float)
 
 
 def main() -> None:

@@ -16,10 +16,7 @@ from edeflare.deflare import deflare
 from edeflare.events import event_keys
 from edeflare.io.dsec import read_dsec
 from edeflare.sim.flare import GhostSpec
-from edeflare.sim.sensing import in_ghosts
-
-sys.path.insert(0, __file__.rsplit("/", 1)[0])
-from ghost_check import track
+from edeflare.sim.sensing import in_ghosts, source_track
 
 
 def panel(ev, drop, ghost, size):
@@ -44,7 +41,7 @@ def main(folder, out, weights, names):
         out = deflare(inp, size, "model", weights=weights)
         kept = np.isin(event_keys(inp, size), event_keys(out, size))
         drop = ~np.isin(event_keys(inp, size), event_keys(gt, size))
-        ghost = in_ghosts(inp, track(light), ghosts, size)
+        ghost = in_ghosts(inp, source_track(light), ghosts, size)
         w = (inp["t"] >= 40_000) & (inp["t"] < 60_000)
         left = panel(inp[w], drop[w], ghost[w], size)
         right = panel(inp[w & kept], drop[w & kept], ghost[w & kept], size)

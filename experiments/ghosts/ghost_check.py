@@ -21,19 +21,7 @@ from edeflare.events import event_keys
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
 from edeflare.sim.flare import GhostSpec
-from edeflare.sim.sensing import in_ghosts
-
-
-def track(light, step=10_000):
-    k = light["t"].astype(np.int64) // step
-    t, x, y = [], [], []
-    for s in np.unique(k):
-        sel = light[k == s]
-        if sel.size >= 20:
-            t.append((s + 0.5) * step)
-            x.append(sel["x"].mean())
-            y.append(sel["y"].mean())
-    return np.array(t), np.array(x), np.array(y)
+from edeflare.sim.sensing import in_ghosts, source_track
 
 
 def measure(weights, folders):
@@ -51,7 +39,7 @@ def measure(weights, folders):
             k_in = event_keys(inp, size)
             keep = np.isin(k_in, event_keys(gt, size))
             kept = np.isin(k_in, event_keys(out, size))
-            ghost = in_ghosts(inp, track(light), ghosts, size)
+            ghost = in_ghosts(inp, source_track(light), ghosts, size)
             kinds = (("ghost", ~keep & ghost, ~kept), ("other", ~keep & ~ghost, ~kept),
                      ("keep", keep, kept))  # fmt: skip
             for name, sel, hit in kinds:

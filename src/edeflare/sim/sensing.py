@@ -31,10 +31,11 @@ measured statistics on a simulated pair, per sequence:
    reflective ghosts' discs (centre ``c + k (L - c)`` through the image centre ``c``,
    the source's centre ``L`` interpolated in time between steps) survives with
    probability ``q_ghost``, log-uniform in ``ghost_survival`` per sequence, in place
-   of step 1's, whatever its distance from the source. A ghost is an image of the source, lit by it and
-   not by light that thins out with distance: real recordings show ghost rings of
-   sparse events hundreds of pixels from the source (``../shared/reference/
-   real_flare_example.png``), where step 1 would leave almost none.
+   of step 1's, whatever its distance from the source. A ghost is an image of the
+   source, lit by it and not by light that thins out with distance: real recordings
+   show ghost rings of sparse events hundreds of pixels from the source
+   (``../shared/reference/real_flare_example.png``), where step 1 would leave almost
+   none.
 6. **Hot pixels to remove** (off unless ``hot_pixels`` is above ``(0, 0)``): a
    number of pixels uniform in ``hot_pixels`` each fire at a rate log-uniform in
    ``hot_rate`` (events per second), almost all of one polarity (ON for three in
@@ -76,7 +77,7 @@ from ..errors import ParameterError
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, event_keys
 from .flare import GhostSpec
 
-__all__ = ["SensingConfig", "in_ghosts", "sparse_sensing"]
+__all__ = ["SensingConfig", "in_ghosts", "source_track", "sparse_sensing"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -182,6 +183,45 @@ def _hot_pixel_events(
     return np.concatenate(parts) if parts else np.empty(0, dtype=EVENT_DTYPE)
 
 
+def source_track(
+    light: np.ndarray, step_us: int = 10_000, t_start_us: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The light source's centre per time step, as :func:`sparse_sensing` finds it.
+
+    Parameters
+    ----------
+    light : numpy.ndarray
+        The ``light`` stream (the source's own events).
+    step_us : int
+        Step length; steps with fewer than 20 events are left out.
+    t_start_us : int
+        Where the steps start.
+
+    Returns
+    -------
+    (t_us, x, y)
+        Float arrays: each kept step's middle and the mean position of its events, the
+        ``track`` of :func:`in_ghosts`.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> t = list(range(0, 40_000, 250))                        # 40 events per 10 ms
+    >>> light = make_events(t, [10] * 80 + [30] * 80, [5] * 160, [1] * 160)
+    >>> [v.tolist() for v in source_track(light)]
+    [[5000.0, 15000.0, 25000.0, 35000.0], [10.0, 10.0, 30.0, 30.0], [5.0, 5.0, 5.0, 5.0]]
+    """
+    step = (light["t"].astype(np.int64) - int(t_start_us)) // int(step_us)
+    t, x, y = [], [], []
+    for k in np.unique(step):
+        sel = light[step == k]
+        if sel.size >= 20:
+            t.append(int(t_start_us) + (k + 0.5) * step_us)
+            x.append(sel["x"].mean())
+            y.append(sel["y"].mean())
+    return np.array(t, np.float64), np.array(x, np.float64), np.array(y, np.float64)
+
+
 def in_ghosts(
     events: np.ndarray,
     track: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -199,8 +239,8 @@ def in_ghosts(
     events : numpy.ndarray
         Structured events.
     track : (t_us, x, y)
-        The source's centre at increasing times; linearly interpolated at each event's
-        time (held at the ends).
+        The source's centre at increasing times (:func:`source_track`); linearly
+        interpolated at each event's time (held at the ends).
     ghosts : sequence of GhostSpec
     sensor_size : (width, height)
 
