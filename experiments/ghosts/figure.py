@@ -38,8 +38,8 @@ def main(folder, out, weights, names):
         light, _ = read_dsec(seq, "light")
         with h5py.File(seq) as f:
             ghosts = [GhostSpec(**g) for g in json.loads(f.attrs["script"])["ghosts"]]
-        out = deflare(inp, size, "model", weights=weights)
-        kept = np.isin(event_keys(inp, size), event_keys(out, size))
+        result = deflare(inp, size, "model", weights=weights)
+        kept = np.isin(event_keys(inp, size), event_keys(result, size))
         drop = ~np.isin(event_keys(inp, size), event_keys(gt, size))
         ghost = in_ghosts(inp, source_track(light), ghosts, size)
         w = (inp["t"] >= 40_000) & (inp["t"] < 60_000)
