@@ -347,8 +347,16 @@ _NIGHT_SCENE = SceneConfig(
     lamps=(0, 5),
 )
 _NIGHT_SENSING = SensingConfig(enabled=True, hot_pixels=(0, 8))
+_NIGHT_RECIPE = Recipe(
+    name="eflare-night",
+    sequences=180,
+    test_sequences=12,
+    sensor_size=(346, 260),
+    scene=_NIGHT_SCENE,
+    config=FlareConfig(script=_NIGHT_SCRIPT, sensing=_NIGHT_SENSING),
+)
 # eflare-night-sparse (2026-11-26): the night recipe with the backgrounds as sparse as the
-# real recordings' (5 events/px/s where they have 0.4-6.7 and eflare-night 18-24: the
+# real recordings' (3-5 events/px/s where they have 0.4-6.7 and eflare-night 18-24: the
 # issue's "speckle-dense" streets), less background activity, and ghosts bright enough
 # to fire over a dark sky, sensed at their own rate wherever they land (the ghost rings
 # of ../shared/reference/real_flare_example.png). Closer to real recordings in every
@@ -381,19 +389,10 @@ for _recipe in (
         scene=_SLOW_STREET,
     ),
     Recipe(name="dsec-flare", kind="dsec", sensor_size=(640, 480)),
-    Recipe(
-        name="eflare-night",
-        sequences=180,
-        test_sequences=12,
-        sensor_size=(346, 260),
-        scene=_NIGHT_SCENE,
-        config=FlareConfig(script=_NIGHT_SCRIPT, sensing=_NIGHT_SENSING),
-    ),
-    Recipe(
+    _NIGHT_RECIPE,
+    dataclasses.replace(
+        _NIGHT_RECIPE,
         name="eflare-night-sparse",
-        sequences=180,
-        test_sequences=12,
-        sensor_size=(346, 260),
         scene=_SPARSE_NIGHT_SCENE,
         config=FlareConfig(script=_SPARSE_NIGHT_SCRIPT, sensing=_SPARSE_NIGHT_SENSING),
     ),
