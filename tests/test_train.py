@@ -201,6 +201,28 @@ def test_resume_is_exact_and_logs_are_not_duplicated(dataset, tmp_path):
     assert iterations == list(range(1, 13))
 
 
+def test_a_time_limit_stops_checkpointed_and_a_rerun_ends_as_the_straight_run(
+    dataset, tmp_path, capsys
+):
+    cfg = _config()
+    straight = train(cfg, _paths(dataset, "train"), tmp_path / "a", progress=False)
+    # A budget of zero minutes: the first iteration spends it, so the run stops after it.
+    limited = train(
+        dataclasses.replace(cfg, time_limit_min=0.0),
+        _paths(dataset, "train"),
+        tmp_path / "b",
+        progress=False,
+    )
+    assert "time limit of 0 min reached at iteration 1 of 12" in capsys.readouterr().err
+    assert load_model(limited)[1].metrics == {"iteration": 1}
+    assert torch.load(tmp_path / "b" / "checkpoint.pt", weights_only=True)["iteration"] == 1
+    resumed = train(cfg, _paths(dataset, "train"), tmp_path / "b", progress=False)
+    a, b = _weights(straight), _weights(resumed)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    iterations = [int(r["iteration"]) for r in _log(tmp_path / "b" / "train_log.csv")]
+    assert iterations == list(range(1, 13))
+
+
 def test_resume_keeps_the_best_score_and_the_clock(dataset, tmp_path):
     cfg = _config(iterations=12)
     out = tmp_path / "r"

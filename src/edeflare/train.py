@@ -91,6 +91,7 @@ class TrainConfig:
     keep_weight: float = 0.5  # loss "keep": the share of the loss on the events to keep
     init: str | None = None  # weights to start from (a path or a bundled name): fine-tuning
     freeze_init: bool = False  # with init: train only the layers the preset adds to it
+    time_limit_min: float | None = None  # stop (checkpointed, resumable) after this many minutes
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
@@ -127,6 +128,7 @@ _FREE_ON_RESUME = frozenset(
         "precompute",
         "device",
         "data",
+        "time_limit_min",
     }
 )
 
@@ -483,6 +485,13 @@ def train(
         scaler.load_state_dict(scaler_state)
     model.train()
     t0 = time.perf_counter() - elapsed
+    # wall-clock budget of this process (a resumed run gets a fresh one)
+    deadline = (
+        time.perf_counter() + 60.0 * config.time_limit_min
+        if config.time_limit_min is not None
+        else math.inf
+    )
+    stopped_at: int | None = None
     bar = tqdm(
         total=config.iterations,
         initial=start,
@@ -519,20 +528,44 @@ def train(
             if scores["val_mse"] < best:
                 best = scores["val_mse"]
                 save_model(out / "best.safetensors", model, _card(config, command, scores, done))
-        if done % config.checkpoint_every == 0 or done == config.iterations:
+        out_of_time = done < config.iterations and _past(deadline, env)
+        if done % config.checkpoint_every == 0 or done == config.iterations or out_of_time:
             if env.main:
                 _save_checkpoint(
                     ckpt_path, model, opt, done, config, best, time.perf_counter() - t0, scaler
                 )
             if env.world > 1:
                 dist.barrier()
+        if out_of_time:
+            stopped_at = done
+            break
     bar.close()
     final = out / "model.safetensors"
     if env.main:
-        save_model(final, model, _card(config, command, {}, config.iterations))
+        save_model(final, model, _card(config, command, {}, stopped_at or config.iterations))
+        if stopped_at is not None:
+            print(
+                f"time limit of {config.time_limit_min:g} min reached at iteration {stopped_at} "
+                f"of {config.iterations}; {final.name} holds that iteration's weights, and "
+                "rerunning the same command resumes from the checkpoint",
+                file=sys.stderr,
+            )
     if env.world > 1:
         dist.barrier()
     return final
+
+
+def _past(deadline: float, env: _Dist) -> bool:
+    """Whether the time budget is spent; under DDP rank 0's clock decides for every rank."""
+    if math.isinf(deadline):
+        return False
+    over = time.perf_counter() >= deadline
+    if env.world > 1:
+        on_gpu = dist.get_backend() == "nccl"
+        flag = torch.tensor([float(over)], device="cuda" if on_gpu else "cpu")
+        dist.broadcast(flag, src=0)
+        over = bool(flag.item())
+    return over
 
 
 def _card(

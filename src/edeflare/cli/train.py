@@ -90,6 +90,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     )
     p.add_argument("--device", help="auto, cpu, cuda, cuda:1 ...")
     p.add_argument(
+        "--time-limit",
+        type=float,
+        dest="time_limit_min",
+        metavar="MINUTES",
+        help="stop after this many minutes of training, checkpointed: model.safetensors holds "
+        "the weights reached, and rerunning the same command resumes (for time-limited jobs)",
+    )
+    p.add_argument(
         "--init",
         metavar="WEIGHTS",
         help="start from these weights (.safetensors or a bundled model's name, e.g. night): "
