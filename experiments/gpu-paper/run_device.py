@@ -133,11 +133,15 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=4)
     parser.add_argument("--lr", type=float, default=3e-4)
     parser.add_argument("--train-s", type=float, default=270.0, help="training time to plan for")
+    parser.add_argument(
+        "--deadline-s", type=float, default=560.0, help="the whole script's wall-clock budget"
+    )
     parser.add_argument("--preset", default="unet3d.paper")
     parser.add_argument("--skip-test", action="store_true")
     parser.add_argument("--sensor", default="640x480", help="WxH of the simulated sequences")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
     torch.backends.cudnn.benchmark = True
     RESULTS["machine"] = {
         "gpu": torch.cuda.get_device_name(0) if CUDA else "none",
@@ -183,14 +187,18 @@ def main() -> None:
 
     t0 = time.perf_counter()
     s_per_it = _network_speed(args.preset, args.batch, shape, 8)
-    iterations = max(50, int(args.train_s / s_per_it))
     windows = len(train_paths) * 5
+    # what is left once the grids are encoded (about 0.06 s a window) and 70 s kept for the rest
+    left = args.deadline_s - (time.perf_counter() - start) - 0.06 * windows - 70.0
+    train_s = min(args.train_s, left)
+    iterations = max(50, int(train_s / s_per_it))
     epoch_len = windows // args.batch
     decay_epoch = max(1, int(0.75 * iterations / epoch_len))
     _stage(
         "probe",
         t0,
         s_per_iteration=round(s_per_it, 4),
+        train_s=round(train_s, 1),
         iterations=iterations,
         epoch_len=epoch_len,
         decay_epoch=decay_epoch,
@@ -207,13 +215,13 @@ def main() -> None:
         milestones=(decay_epoch,),
         flip=True,
         polarity_flip=True,
-        val_every=iterations,
+        val_every=max(1, iterations // 2),
         val_windows=16,
         checkpoint_every=max(100, iterations // 4),
         precompute=True,
         data=f"eflare-2.7k 640x480: {args.physical} PNL-ES (seed 0) + {args.forward} forward "
         f"model (seed 1) sequences; validation {args.val} PNL-ES",
-        time_limit_min=(args.train_s + 90.0) / 60.0,
+        time_limit_min=max(0.5, train_s + 30.0) / 60.0,
     )
     run = args.work / "run"
     final = train(
