@@ -463,7 +463,7 @@ def train(
             )
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
-        torch.set_rng_state(state["torch_rng"])
+        torch.set_rng_state(state["torch_rng"].cpu())  # map_location moved it
         start = int(state["iteration"])
         best = float(state.get("best_val_mse", math.inf))
         elapsed = float(state.get("seconds", 0.0))
