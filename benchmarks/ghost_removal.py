@@ -12,7 +12,9 @@ of the events to keep kept (means over the sequences holding at least 100 events
 kind; one huge light can hold most of the pooled events) and the harmonic mean of the
 three. The reference is dv-processing's ``FastDecayNoiseFilter`` (dv-fastdecay), the
 filter users already run, which removes the ghost ring of
-``../shared/reference/real_flare_example.png``. Prints the table and writes
+``../shared/reference/real_flare_example.png``. The row ``model, ghost shift 2`` is the
+model with its keep logits lowered by 2 inside the ghost prior
+(:mod:`edeflare.models.ghosts`, ``--ghost-shift 2``). Prints the table and writes
 ``results/ghost_removal.json``. Run::
 
     python benchmarks/ghost_removal.py [--model WEIGHTS] [--data DIR]
@@ -37,7 +39,17 @@ from edeflare.io.sequence import list_sequences
 from edeflare.sim.flare import GhostSpec
 from edeflare.sim.sensing import in_ghosts, source_track
 
-METHODS = ("raw", "model", "dv-fastdecay", "dv-bafilter", "dv-knoise", "pfd-a")
+ROWS = {
+    "raw": ("raw", {}),
+    "model": ("model", {}),
+    "model, ghost shift 2": ("model", {"ghost_shift": 2.0}),
+    "dv-fastdecay": ("dv-fastdecay", {}),
+    "dv-bafilter": ("dv-bafilter", {}),
+    "dv-knoise": ("dv-knoise", {}),
+    "pfd-a": ("pfd-a", {}),
+}
+"""Row name: (method, parameters)."""
+METHODS = tuple(ROWS)
 REFERENCE = "dv-fastdecay"
 MIN_EVENTS = 100
 """A sequence counts for a kind's mean where it holds at least this many of its events."""
@@ -55,9 +67,10 @@ def main() -> None:
             sequences=8, test_sequences=8, sensor_size=(640, 480), seed=4242
         )
         generate_dataset(recipe, folder, workers=2)
+    weights = {"weights": args.model} if args.model else {}
     methods = {
-        m: create_method(m, **({"weights": args.model} if m == "model" and args.model else {}))
-        for m in METHODS
+        name: create_method(m, **params, **(weights if m == "model" else {}))
+        for name, (m, params) in ROWS.items()
     }
     shares: dict[str, dict[str, list[float]]] = {
         m: {"ghost": [], "other": [], "keep": []} for m in METHODS

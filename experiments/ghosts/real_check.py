@@ -1,4 +1,6 @@
-"""python experiments/ghosts/real_check.py [WEIGHTS...]: a model on the real recordings.
+"""python experiments/ghosts/real_check.py [WEIGHTS...] [name=value...]: a model on the real
+recordings (``name=value``: a parameter of the model method for every run, e.g.
+``ghost_shift=2``).
 
 Per weights file (default: the bundled default): on the two annotated recordings the
 score of ``edeflare score --phases 4`` (the recording delayed by 0, 5, 10, 15 ms; means
@@ -22,9 +24,9 @@ SCENES = ("davis346_street_cars.aedat4", "davis346_lowlight_cradle.aedat4",
 EXT = {"prophesee_gen3_rotating_light": ".raw", "davis346_flicker_lamps": ".aedat4"}
 
 
-def main(weights):
-    kw = {} if weights is None else {"weights": weights}
-    line = [str(weights or "bundled")]
+def main(weights, params):
+    kw = {**params, **({} if weights is None else {"weights": weights})}
+    line = [str(weights or "bundled") + "".join(f" {k}={v}" for k, v in params.items())]
     for name in SCORED:
         ev0, size = read_events(REAL + name + EXT[name])
         lights = load_lights(LIGHTS + name + ".json", size)
@@ -48,5 +50,7 @@ def main(weights):
 
 
 if __name__ == "__main__":
-    for w in sys.argv[1:] or [None]:
-        main(w)
+    params = dict(a.split("=", 1) for a in sys.argv[1:] if "=" in a)
+    params = {k: float(v) for k, v in params.items()}
+    for w in [a for a in sys.argv[1:] if "=" not in a] or [None]:
+        main(w, params)

@@ -503,6 +503,17 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    ghost_shift: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--ghost-shift",
+            "mask models: lower the keep logit by this much where a reflective ghost of the "
+            "window's lights can be (the lights reflected through the sensor's centre; 0: off)",
+            metavar="LOGIT",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     runtime: str = dataclasses.field(
         default="auto",
         metadata=cli_option(
@@ -683,6 +694,7 @@ class ModelMethod(Method):
         runtime: str = "auto",
         keep_threshold: float | None = None,
         phase_shift_us: int | None = None,
+        ghost_shift: float | None = None,
     ) -> None:
         from .models.infer import DECODERS, RUNTIMES, resolve_weights
         from .models.weights import read_card
@@ -693,6 +705,13 @@ class ModelMethod(Method):
             raise ParameterError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
         if keep_threshold is not None and not 0.0 < keep_threshold < 1.0:
             raise ParameterError(f"keep_threshold must be in (0, 1), got {keep_threshold!r}")
+        if ghost_shift is not None and not (
+            isinstance(ghost_shift, (int, float))
+            and not isinstance(ghost_shift, bool)
+            and math.isfinite(ghost_shift)
+            and ghost_shift >= 0
+        ):
+            raise ParameterError(f"ghost_shift must be a finite number >= 0, got {ghost_shift!r}")
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -727,6 +746,7 @@ class ModelMethod(Method):
             runtime=runtime,
             keep_threshold=keep_threshold,
             phase_shift_us=int(phase_shift_us),
+            ghost_shift=ghost_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
         # shared by every stream of this method: a benchmark opens one per sequence.
@@ -746,6 +766,7 @@ class ModelMethod(Method):
                 seed=seed,
                 runtime=p["runtime"],
                 keep_threshold=p["keep_threshold"],
+                ghost_shift=p["ghost_shift"],
             )
         deflarer = self._deflarers[seed]
         size = check_sensor_size(sensor_size)

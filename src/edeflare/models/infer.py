@@ -24,6 +24,7 @@ both decoders give the same result.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -37,6 +38,7 @@ from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
+from .ghosts import in_ghost_prior
 from .weights import ModelCard, load_model
 
 __all__ = [
@@ -162,6 +164,11 @@ class ModelDeflarer:
         Mask models: an event is kept where its keep probability exceeds this
         (default: the model card's, 1/2 unless the card says otherwise). Lower
         keeps more of the scene and of the flare.
+    ghost_shift : float, optional
+        Mask models: how much lower (in logit units) the keep logit of an event is
+        inside its window's ghost prior (:mod:`edeflare.models.ghosts`: where a
+        reflective ghost of the window's lights can be). Default: the model card's
+        (0, off, unless the card says otherwise).
 
     Attributes
     ----------
@@ -184,6 +191,7 @@ class ModelDeflarer:
         seed: int = 0,
         runtime: str = "auto",
         keep_threshold: float | None = None,
+        ghost_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -226,6 +234,14 @@ class ModelDeflarer:
         self.keep_threshold = float(threshold)
         if not 0.0 < self.keep_threshold < 1.0:
             raise EdeflareError(f"keep_threshold must be in (0, 1), got {self.keep_threshold}")
+        shift = card.ghost_shift if ghost_shift is None else ghost_shift
+        if not (isinstance(shift, (int, float)) and math.isfinite(shift) and shift >= 0):
+            raise EdeflareError(f"ghost_shift must be a finite number >= 0, got {shift!r}")
+        self.ghost_shift = float(shift)
+        if self.ghost_shift and not isinstance(model, FlareMaskNet):
+            raise EdeflareError(
+                f"{weights}: ghost_shift needs a mask model, not a {card.preset} (voxel-to-voxel)"
+            )
         self.decoder = decoder
         self.batch_windows = int(batch_windows)
         self.seed = int(seed)
@@ -361,12 +377,16 @@ class ModelDeflarer:
             [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
         )
         logits = self._network(feats, sensor_size, True)
-        return [
+        out = [
             event_keep_logits(
                 lg, events, start, w, scale, pixel_params=self.pixel_params, sensor_size=sensor_size
             )
             for (start, events), lg in zip(batch, logits, strict=True)
         ]
+        if self.ghost_shift:
+            for (_, events), v in zip(batch, out, strict=True):
+                v -= self.ghost_shift * in_ghost_prior(events, sensor_size, w)
+        return out
 
     def _run_mask(
         self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize

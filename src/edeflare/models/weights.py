@@ -65,6 +65,7 @@ class ModelCard:
     metrics: dict[str, Any] = field(default_factory=dict)
     notes: str = ""
     keep_threshold: float = 0.5  # mask models: keep an event above this keep probability
+    ghost_shift: float = 0.0  # mask models: keep logit lowered in the ghost prior (ghosts.py)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""

@@ -1,0 +1,134 @@
+r"""Where a window's reflective ghosts can be: a parameter-free prior from lens geometry.
+
+A lens ghost of a bright source at :math:`L` is an image of it reflected between lens
+surfaces; it lies on the line through the optical centre :math:`c`, at
+:math:`c + k (L - c)` for a factor :math:`k` set by the lens (negative: across the
+centre; the simulator's ghosts, :class:`edeflare.sim.flare.GhostSpec`, use the same
+geometry). Far from its source a ghost is a ring or disc of sparse events that looks
+like scene texture to a network that sees it without the light, so a mask model finds
+it hard to drop (``benchmarks/ghost_removal.py``). The prior marks the cells a ghost of
+a window's lights can reach: the dense cells (the lights) are reflected through the
+sensor's centre at every factor of :data:`GHOST_FACTORS`, the result widened by
+``widen`` cells, and the lights themselves (and the cells next to them) left out.
+:class:`~edeflare.models.infer.ModelDeflarer` lowers the keep logit of the events in
+it by the card's ``ghost_shift``: an event there is dropped only where the network
+already leaned towards dropping it, not wherever the prior says.
+
+It needs no learning and no calibration beyond what counts as a light: a cell of
+``cell x cell`` pixels firing at least :data:`LIGHT_RATE` events per pixel and
+millisecond (320 events in an 8x8 cell in 20 ms).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from ..events import SensorSize, check_sensor_size
+
+__all__ = ["GHOST_FACTORS", "LIGHT_RATE", "ghost_cells", "in_ghost_prior"]
+
+GHOST_FACTORS: tuple[float, ...] = (
+    -0.5, -1.0, -1.5, -2.0, -2.5, -3.0, -3.5, -4.0, -4.5, -5.0, 0.4, 0.6,
+)  # fmt: skip
+"""Ghost position factors ``k`` (ghost at ``c + k (L - c)``): across the centre from half
+to five times the source's distance, and 0.4-0.6 of the way towards it."""
+
+LIGHT_RATE = 0.25
+"""Events per pixel and millisecond from which a cell counts as a light."""
+
+
+def ghost_cells(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    *,
+    cell: int = 8,
+    widen: int = 2,
+    factors: tuple[float, ...] = GHOST_FACTORS,
+) -> np.ndarray:
+    """The cells (``cell`` x ``cell`` pixels) of a window where a ghost of its lights can be.
+
+    Parameters
+    ----------
+    events : structured array
+        One window's events.
+    sensor_size : (width, height)
+    window_us : int
+        The window's length (what :data:`LIGHT_RATE` is counted over).
+    cell : int
+        Cell size in pixels.
+    widen : int
+        Cells added around the reflected lights (ghosts are wider than their
+        source, and the factors are a sampling).
+    factors : tuple of float
+        Ghost position factors.
+
+    Returns
+    -------
+    numpy.ndarray
+        bool, shape ``(ceil(height / cell), ceil(width / cell))``.
+
+    Examples
+    --------
+    A light in the top-left corner of a 64x64 sensor: its ghosts fall towards the
+    bottom-right, across the centre.
+
+    >>> from edeflare.events import make_events
+    >>> n = 400
+    >>> ev = make_events(np.arange(n) * 50, np.arange(n) % 8, np.arange(n) // 8 % 8,
+    ...                  np.ones(n))
+    >>> g = ghost_cells(ev, (64, 64), 20_000)
+    >>> g.shape, bool(g[0, 0]), bool(g[7, 7]), bool(g[4, 4])
+    ((8, 8), False, True, True)
+    """
+    width, height = check_sensor_size(sensor_size)
+    if window_us <= 0:
+        raise ValueError(f"window_us must be positive, got {window_us}")
+    if cell < 1 or widen < 0:
+        raise ValueError(f"cell must be >= 1 and widen >= 0, got {cell} and {widen}")
+    h, w = -(-height // cell), -(-width // cell)
+    counts = np.bincount(
+        (events["y"] // cell).astype(np.int64) * w + events["x"] // cell, minlength=h * w
+    ).reshape(h, w)
+    lights = counts >= LIGHT_RATE * cell * cell * window_us / 1000.0
+    prior = np.zeros((h, w), dtype=bool)
+    if not lights.any():
+        return prior
+    cy, cx = height / 2 / cell, width / 2 / cell  # the centre, in cells
+    yy, xx = np.mgrid[0:h, 0:w] + 0.5  # cell centres
+    ly, lx = np.nonzero(lights)
+    for k in factors:
+        # a cell holds a ghost if the point it maps back to is a light (fills the ghosts
+        # larger than their source, |k| > 1) ...
+        sy = np.floor(cy + (yy - cy) / k).astype(np.int64)
+        sx = np.floor(cx + (xx - cx) / k).astype(np.int64)
+        ok = (sy >= 0) & (sy < h) & (sx >= 0) & (sx < w)
+        prior[ok] |= lights[sy[ok], sx[ok]]
+        # ... and every light marks the cell of its ghost (those smaller, |k| < 1)
+        gy = np.floor(cy + k * (ly + 0.5 - cy)).astype(np.int64)
+        gx = np.floor(cx + k * (lx + 0.5 - cx)).astype(np.int64)
+        ok = (gy >= 0) & (gy < h) & (gx >= 0) & (gx < w)
+        prior[gy[ok], gx[ok]] = True
+    if widen:
+        prior = ndimage.binary_dilation(prior, iterations=widen)
+    return prior & ~ndimage.binary_dilation(lights, iterations=1)
+
+
+def in_ghost_prior(
+    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
+) -> np.ndarray:
+    """Whether each event of a window lies in its :func:`ghost_cells`.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> n = 400
+    >>> ev = make_events(np.arange(n) * 50, np.arange(n) % 8, np.arange(n) // 8 % 8,
+    ...                  np.ones(n))
+    >>> far = make_events([10, 20], [60, 4], [60, 4], [1, 0])
+    >>> in_ghost_prior(np.concatenate([ev, far]), (64, 64), 20_000)[-2:].tolist()
+    [True, False]
+    """
+    cells = ghost_cells(events, sensor_size, window_us, cell=cell)
+    return cells[events["y"] // cell, events["x"] // cell]

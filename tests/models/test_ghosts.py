@@ -1,0 +1,99 @@
+"""The ghost prior (lights reflected through the sensor's centre) and its logit shift."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import random_events
+from edeflare.deflare import create_method
+from edeflare.errors import EdeflareError, ParameterError
+from edeflare.events import make_events, merge_events
+from edeflare.models import create_model
+from edeflare.models.ghosts import LIGHT_RATE, ghost_cells, in_ghost_prior
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.weights import ModelCard, save_model
+
+
+def _light(x0: int, y0: int, n: int = 400, size: int = 8) -> np.ndarray:
+    """``n`` events in the ``size`` x ``size`` pixels from (x0, y0), over 20 ms."""
+    k = np.arange(n)
+    return make_events(k * (20_000 // n), x0 + k % size, y0 + k // size % size, np.ones(n))
+
+
+def test_a_corner_light_has_its_ghosts_on_the_diagonal_through_the_centre():
+    # 64x64 sensor, 8x8 cells: the centre is at cell coordinate 4; the light's cell
+    # centre at 0.5. Ghost at 4 + k (0.5 - 4): k = 0.6 -> 1.9 (cell 1), 0.4 -> 2.6 (2),
+    # -0.5 -> 5.75 (5), -1 -> 7.5 (7), -1.5 and beyond off the sensor. The light's own
+    # cell and its four neighbours are left out; (1, 1) is only a diagonal neighbour.
+    cells = ghost_cells(_light(0, 0), (64, 64), 20_000, widen=0)
+    assert sorted(zip(*np.nonzero(cells), strict=True)) == [(1, 1), (2, 2), (5, 5), (7, 7)]
+    widened = ghost_cells(_light(0, 0), (64, 64), 20_000, widen=1)
+    assert widened[6, 7] and widened[4, 5] and not widened[0, 7]
+
+
+def test_the_prior_follows_the_light_and_a_light_needs_its_rate():
+    # a light in cell (3, 7) at the right edge (centre 3.5, 7.5): its k = -1 ghost is at
+    # 4 - (3.5 - 4) = 4.5, 4 - (7.5 - 4) = 0.5, cell (4, 0) at the left edge
+    cells = ghost_cells(_light(56, 24), (64, 64), 20_000, widen=0)
+    assert cells[4, 0] and not cells[3, 7]
+    # 320 events in an 8x8 cell are a light in 20 ms (LIGHT_RATE 0.25 / px / ms) ...
+    assert LIGHT_RATE * 64 * 20 == 320
+    assert ghost_cells(_light(0, 0, n=320), (64, 64), 20_000).any()
+    # ... but not in 40 ms, nor 319 of them in 20 ms
+    assert not ghost_cells(_light(0, 0, n=320), (64, 64), 40_000).any()
+    assert not ghost_cells(_light(0, 0, n=319), (64, 64), 20_000).any()
+    empty = make_events([], [], [], [])
+    assert not ghost_cells(empty, (64, 64), 20_000).any()
+
+
+def test_in_ghost_prior_reads_each_events_cell():
+    far = make_events([1, 2, 3], [60, 61, 58], [60, 57, 4], [1, 0, 1])
+    ev = merge_events(_light(0, 0), far)
+    inside = in_ghost_prior(ev, (64, 64), 20_000)
+    cells = ghost_cells(ev, (64, 64), 20_000)
+    np.testing.assert_array_equal(inside, cells[ev["y"] // 8, ev["x"] // 8])
+    assert inside[np.isin(ev["x"], [60, 61])].all() and not inside[ev["x"] == 58].any()
+
+
+@pytest.mark.parametrize("kw", [{"cell": 0}, {"widen": -1}])
+def test_bad_prior_settings_are_refused(kw):
+    with pytest.raises(ValueError, match="cell must be"):
+        ghost_cells(_light(0, 0), (64, 64), 20_000, **kw)
+    with pytest.raises(ValueError, match="window_us"):
+        ghost_cells(_light(0, 0), (64, 64), 0)
+
+
+def test_the_shift_lowers_exactly_the_logits_inside_the_prior(rng):
+    size = (64, 64)
+    ev = merge_events(_light(0, 0), random_events(rng, 300, size, t0=0, span_us=20_000))
+    weights = bundled_weights()
+    plain = ModelDeflarer(weights).window_logits([(0, ev)], size)[0]
+    shifted = ModelDeflarer(weights, ghost_shift=2.5).window_logits([(0, ev)], size)[0]
+    inside = in_ghost_prior(ev, size, 20_000)
+    assert 0 < inside.sum() < len(ev)
+    np.testing.assert_allclose(plain - shifted, 2.5 * inside, atol=1e-5)
+    # the method keeps a subset, and drops more only inside the prior
+    kept = create_method("model", ghost_shift=0.0)(ev, size, rng=0)
+    kept_shifted = create_method("model", ghost_shift=4.0)(ev, size, rng=0)
+    assert np.isin(kept_shifted, kept).all() and len(kept_shifted) < len(kept)
+    lost = kept[~np.isin(kept, kept_shifted)]
+    assert in_ghost_prior(ev, size, 20_000)[np.isin(ev, lost)].all()
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), True, "2"])
+def test_a_bad_ghost_shift_is_refused(bad):
+    with pytest.raises(ParameterError, match="ghost_shift"):
+        create_method("model", ghost_shift=bad)
+
+
+def test_the_shift_needs_a_mask_model_and_defaults_to_the_cards(tmp_path):
+    path = tmp_path / "v.safetensors"
+    save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
+    with pytest.raises(EdeflareError, match="ghost_shift needs a mask model"):
+        ModelDeflarer(path, ghost_shift=1.0)
+    assert ModelDeflarer(path).ghost_shift == 0.0
+    carded = tmp_path / "m.safetensors"
+    save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", ghost_shift=1.5))
+    assert ModelDeflarer(carded).ghost_shift == 1.5
+    assert ModelDeflarer(carded, ghost_shift=0.0).ghost_shift == 0.0
