@@ -696,6 +696,7 @@ class ModelMethod(Method):
         phase_shift_us: int | None = None,
         ghost_shift: float | None = None,
     ) -> None:
+        from .models.ghosts import check_ghost_shift
         from .models.infer import DECODERS, RUNTIMES, resolve_weights
         from .models.weights import read_card
 
@@ -705,13 +706,8 @@ class ModelMethod(Method):
             raise ParameterError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
         if keep_threshold is not None and not 0.0 < keep_threshold < 1.0:
             raise ParameterError(f"keep_threshold must be in (0, 1), got {keep_threshold!r}")
-        if ghost_shift is not None and not (
-            isinstance(ghost_shift, (int, float))
-            and not isinstance(ghost_shift, bool)
-            and math.isfinite(ghost_shift)
-            and ghost_shift >= 0
-        ):
-            raise ParameterError(f"ghost_shift must be a finite number >= 0, got {ghost_shift!r}")
+        if ghost_shift is not None:
+            ghost_shift = check_ghost_shift(ghost_shift)
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)

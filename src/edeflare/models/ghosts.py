@@ -21,12 +21,15 @@ millisecond (320 events in an 8x8 cell in 20 ms).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import ndimage
 
+from ..errors import ParameterError
 from ..events import SensorSize, check_sensor_size
 
-__all__ = ["GHOST_FACTORS", "LIGHT_RATE", "ghost_cells", "in_ghost_prior"]
+__all__ = ["GHOST_FACTORS", "LIGHT_RATE", "check_ghost_shift", "ghost_cells", "in_ghost_prior"]
 
 GHOST_FACTORS: tuple[float, ...] = (
     -0.5, -1.0, -1.5, -2.0, -2.5, -3.0, -3.5, -4.0, -4.5, -5.0, 0.4, 0.6,
@@ -132,3 +135,25 @@ def in_ghost_prior(
     """
     cells = ghost_cells(events, sensor_size, window_us, cell=cell)
     return cells[events["y"] // cell, events["x"] // cell]
+
+
+def check_ghost_shift(value: object) -> float:
+    """A ghost shift (keep-logit units) as a float, or a ParameterError: finite, >= 0.
+
+    Examples
+    --------
+    >>> check_ghost_shift(2)
+    2.0
+    >>> check_ghost_shift(-1.0)
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: ghost_shift must be a finite number >= 0, got -1.0
+    """
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not math.isfinite(value)
+        or value < 0
+    ):
+        raise ParameterError(f"ghost_shift must be a finite number >= 0, got {value!r}")
+    return float(value)

@@ -24,7 +24,6 @@ both decoders give the same result.
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -38,7 +37,7 @@ from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
-from .ghosts import in_ghost_prior
+from .ghosts import check_ghost_shift, in_ghost_prior
 from .weights import ModelCard, load_model
 
 __all__ = [
@@ -235,9 +234,7 @@ class ModelDeflarer:
         if not 0.0 < self.keep_threshold < 1.0:
             raise EdeflareError(f"keep_threshold must be in (0, 1), got {self.keep_threshold}")
         shift = card.ghost_shift if ghost_shift is None else ghost_shift
-        if not (isinstance(shift, (int, float)) and math.isfinite(shift) and shift >= 0):
-            raise EdeflareError(f"ghost_shift must be a finite number >= 0, got {shift!r}")
-        self.ghost_shift = float(shift)
+        self.ghost_shift = check_ghost_shift(shift)
         if self.ghost_shift and not isinstance(model, FlareMaskNet):
             raise EdeflareError(
                 f"{weights}: ghost_shift needs a mask model, not a {card.preset} (voxel-to-voxel)"
