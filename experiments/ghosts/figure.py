@@ -1,5 +1,6 @@
-"""python experiments/ghosts/figure.py FOLDER OUT.png WEIGHTS [SEQ...]: 20 ms windows of
-eflare-night-sparse test sequences, input beside a model's output.
+"""python experiments/ghosts/figure.py FOLDER OUT.png WEIGHTS [SEQ...] [name=value...]: 20 ms
+windows of eflare-night-sparse test sequences, input beside a model's output
+(``name=value``: a parameter of the model method, e.g. ``ghost_shift=2``).
 
 Grey: events to keep; red / blue: ON / OFF events to drop (scattered light, hot pixels);
 green: events to drop inside a ghost's disc. Each row a sequence (40-60 ms).
@@ -29,7 +30,8 @@ def panel(ev, drop, ghost, size):
     return img
 
 
-def main(folder, out, weights, names):
+def main(folder, out, weights, names, params=None):
+    params = params or {}
     rows = []
     for name in names:
         seq = f"{folder}/test/{name}.h5"
@@ -38,7 +40,7 @@ def main(folder, out, weights, names):
         light, _ = read_dsec(seq, "light")
         with h5py.File(seq) as f:
             ghosts = [GhostSpec(**g) for g in json.loads(f.attrs["script"])["ghosts"]]
-        result = deflare(inp, size, "model", weights=weights)
+        result = deflare(inp, size, "model", weights=weights, **params)
         kept = np.isin(event_keys(inp, size), event_keys(result, size))
         drop = ~np.isin(event_keys(inp, size), event_keys(gt, size))
         ghost = in_ghosts(inp, source_track(light), ghosts, size)
@@ -51,9 +53,12 @@ def main(folder, out, weights, names):
                                           for r in rows]))  # fmt: skip
     d = ImageDraw.Draw(img)
     d.text((4, 2), "input (green: ghost events to drop)", fill=(0, 0, 0))
-    d.text((size[0] + 12, 2), f"after {weights.rsplit('/', 1)[-1]}", fill=(0, 0, 0))
+    label = " ".join([weights.rsplit("/", 1)[-1], *(f"{k}={v}" for k, v in params.items())])
+    d.text((size[0] + 12, 2), f"after {label}", fill=(0, 0, 0))
     img.save(out)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:])
+    rest = sys.argv[4:]
+    params = {k: float(v) for k, v in (a.split("=", 1) for a in rest if "=" in a)}
+    main(sys.argv[1], sys.argv[2], sys.argv[3], [a for a in rest if "=" not in a], params)
