@@ -60,7 +60,9 @@ recordings, ``assets/night.md``) removes the sparse flare real sensors record an
 keeps the light, on a CPU at about the speed of the sensor. ``eflare`` (``assets/eflare.md``, the
 default until 2026-11-25) is the voxel-to-voxel ``unet2d.lite`` trained on the
 uncalibrated simulator: better on that simulator's own test sets, far worse on
-real recordings and 20 times slower.
+real recordings and 20 times slower. ``paper`` (``assets/paper.md``) is the paper's
+``unet3d.paper``, trained once on a GPU: it is the one that improves reconstructions on the
+optics test set ``eflare-r-sim``, and it fails on real recordings too.
 """
 
 _ASSETS = Path(__file__).resolve().parent.parent / "assets"
