@@ -21,7 +21,6 @@ for k in range(3):
     img = np.full((H, W, 3), 255, np.uint8)
     e = sel(a); img[e["y"], e["x"]] = (150, 150, 150)
     e = sel(lost); img[e["y"], e["x"]] = (220, 0, 0)
-    w = sel(ev)[:20000]
     c = ghost_cells(ev[(ev["t"] >= s) & (ev["t"] < s + 20000)], size, 20000)
     cy, cx = np.nonzero(c)
     for y, x in zip(cy, cx):
