@@ -302,22 +302,26 @@ def test_group_option_opens_one_stream_of_a_paired_file(tmp_path, capsys, rng):
     assert "no event group 'nope'" in capsys.readouterr().err
 
 
-def test_deflare_ghost_shift_drops_a_subset_and_a_bad_one_is_a_clear_error(tmp_path, capsys):
+@pytest.mark.parametrize("option", ["--ghost-shift", "--halo-shift"])
+def test_deflare_prior_shift_drops_a_subset_and_a_bad_one_is_a_clear_error(
+    option, tmp_path, capsys
+):
     size = (64, 64)
-    k = np.arange(400)  # a light in the top-left cell; sparse events across the centre
+    k = np.arange(400)  # a light in the top-left cell; sparse events around it and beyond
     light = make_events(k * 50, k % 8, k // 8 % 8, np.ones(400))
     rng = np.random.default_rng(3)
     sparse = random_events(rng, 200, size, t0=0, span_us=20_000)
     src = tmp_path / "in.h5"
     write_events(src, np.sort(np.concatenate([light, sparse]), order="t"), size)
     plain, shifted = tmp_path / "plain.h5", tmp_path / "shifted.h5"
-    assert main(["deflare", str(src), str(plain)]) == 0
-    assert main(["deflare", str(src), str(shifted), "--ghost-shift", "50"]) == 0
+    assert main(["deflare", str(src), str(plain), option, "0"]) == 0
+    assert main(["deflare", str(src), str(shifted), option, "50"]) == 0
     a, b = read_events(plain).events, read_events(shifted).events
     assert np.isin(b, a).all() and len(b) < len(a)  # it only drops, and drops more
     capsys.readouterr()
-    assert main(["deflare", str(src), str(tmp_path / "x.h5"), "--ghost-shift", "-1"]) == 1
-    assert "ghost_shift must be a finite number >= 0, got -1.0" in capsys.readouterr().err
+    assert main(["deflare", str(src), str(tmp_path / "x.h5"), option, "-1"]) == 1
+    name = option[2:].replace("-", "_")
+    assert f"{name} must be a finite number >= 0, got -1.0" in capsys.readouterr().err
     assert not (tmp_path / "x.h5").exists()
 
 

@@ -514,6 +514,17 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    halo_shift: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--halo-shift",
+            "mask models: lower the keep logit by this much in the halo of the window's lights "
+            "(from just outside each light to six of its radii; 0: off)",
+            metavar="LOGIT",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     runtime: str = dataclasses.field(
         default="auto",
         metadata=cli_option(
@@ -695,8 +706,10 @@ class ModelMethod(Method):
         keep_threshold: float | None = None,
         phase_shift_us: int | None = None,
         ghost_shift: float | None = None,
+        halo_shift: float | None = None,
     ) -> None:
         from .models.ghosts import check_ghost_shift
+        from .models.halos import check_halo_shift
         from .models.infer import DECODERS, RUNTIMES, resolve_weights
         from .models.weights import read_card
 
@@ -708,6 +721,8 @@ class ModelMethod(Method):
             raise ParameterError(f"keep_threshold must be in (0, 1), got {keep_threshold!r}")
         if ghost_shift is not None:
             ghost_shift = check_ghost_shift(ghost_shift)
+        if halo_shift is not None:
+            halo_shift = check_halo_shift(halo_shift)
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -743,6 +758,7 @@ class ModelMethod(Method):
             keep_threshold=keep_threshold,
             phase_shift_us=int(phase_shift_us),
             ghost_shift=ghost_shift,
+            halo_shift=halo_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
         # shared by every stream of this method: a benchmark opens one per sequence.
@@ -763,6 +779,7 @@ class ModelMethod(Method):
                 runtime=p["runtime"],
                 keep_threshold=p["keep_threshold"],
                 ghost_shift=p["ghost_shift"],
+                halo_shift=p["halo_shift"],
             )
         deflarer = self._deflarers[seed]
         size = check_sensor_size(sensor_size)

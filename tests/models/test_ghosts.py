@@ -56,9 +56,9 @@ def test_in_ghost_prior_reads_each_events_cell():
     assert inside[np.isin(ev["x"], [60, 61])].all() and not inside[ev["x"] == 58].any()
 
 
-@pytest.mark.parametrize("kw", [{"cell": 0}, {"widen": -1}])
-def test_bad_prior_settings_are_refused(kw):
-    with pytest.raises(ValueError, match="cell must be"):
+@pytest.mark.parametrize("kw, what", [({"cell": 0}, "cell must be"), ({"widen": -1}, "widen")])
+def test_bad_prior_settings_are_refused(kw, what):
+    with pytest.raises(ValueError, match=what):
         ghost_cells(_light(0, 0), (64, 64), 20_000, **kw)
     with pytest.raises(ValueError, match="window_us"):
         ghost_cells(_light(0, 0), (64, 64), 0)

@@ -29,7 +29,15 @@ from scipy import ndimage
 from ..errors import ParameterError
 from ..events import SensorSize, check_sensor_size
 
-__all__ = ["GHOST_FACTORS", "LIGHT_RATE", "check_ghost_shift", "ghost_cells", "in_ghost_prior"]
+__all__ = [
+    "GHOST_FACTORS",
+    "LIGHT_RATE",
+    "check_ghost_shift",
+    "check_logit_shift",
+    "ghost_cells",
+    "in_ghost_prior",
+    "light_cells",
+]
 
 GHOST_FACTORS: tuple[float, ...] = (
     -0.5, -1.0, -1.5, -2.0, -2.5, -3.0, -3.5, -4.0, -4.5, -5.0, 0.4, 0.6,
@@ -39,6 +47,35 @@ to five times the source's distance, and 0.4-0.6 of the way towards it."""
 
 LIGHT_RATE = 0.25
 """Events per pixel and millisecond from which a cell counts as a light."""
+
+
+def light_cells(
+    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
+) -> np.ndarray:
+    """The cells (``cell`` x ``cell`` pixels) of a window that are lights.
+
+    A cell is a light when it fires at least :data:`LIGHT_RATE` events per pixel
+    and millisecond over the window.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> n = 400   # 400 events in the top-left 8x8 cell in 20 ms: 0.31 per px and ms
+    >>> ev = make_events(np.arange(n) * 50, np.arange(n) % 8, np.arange(n) // 8 % 8,
+    ...                  np.ones(n))
+    >>> light_cells(ev, (32, 16), 20_000).astype(int).tolist()
+    [[1, 0, 0, 0], [0, 0, 0, 0]]
+    """
+    width, height = check_sensor_size(sensor_size)
+    if window_us <= 0:
+        raise ValueError(f"window_us must be positive, got {window_us}")
+    if cell < 1:
+        raise ValueError(f"cell must be >= 1, got {cell}")
+    h, w = -(-height // cell), -(-width // cell)
+    counts = np.bincount(
+        (events["y"] // cell).astype(np.int64) * w + events["x"] // cell, minlength=h * w
+    ).reshape(h, w)
+    return counts >= LIGHT_RATE * cell * cell * window_us / 1000.0
 
 
 def ghost_cells(
@@ -86,15 +123,10 @@ def ghost_cells(
     ((8, 8), False, True, True)
     """
     width, height = check_sensor_size(sensor_size)
-    if window_us <= 0:
-        raise ValueError(f"window_us must be positive, got {window_us}")
-    if cell < 1 or widen < 0:
-        raise ValueError(f"cell must be >= 1 and widen >= 0, got {cell} and {widen}")
-    h, w = -(-height // cell), -(-width // cell)
-    counts = np.bincount(
-        (events["y"] // cell).astype(np.int64) * w + events["x"] // cell, minlength=h * w
-    ).reshape(h, w)
-    lights = counts >= LIGHT_RATE * cell * cell * window_us / 1000.0
+    if widen < 0:
+        raise ValueError(f"widen must be >= 0, got {widen}")
+    lights = light_cells(events, sensor_size, window_us, cell=cell)
+    h, w = lights.shape
     prior = np.zeros((h, w), dtype=bool)
     if not lights.any():
         return prior
@@ -137,6 +169,26 @@ def in_ghost_prior(
     return cells[events["y"] // cell, events["x"] // cell]
 
 
+def check_logit_shift(value: object, name: str) -> float:
+    """A prior's keep-logit shift ``name`` as a float, or a ParameterError: finite, >= 0.
+
+    Examples
+    --------
+    >>> check_logit_shift(-1.0, "ghost_shift")
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: ghost_shift must be a finite number >= 0, got -1.0
+    """
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not math.isfinite(value)
+        or value < 0
+    ):
+        raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
+    return float(value)
+
+
 def check_ghost_shift(value: object) -> float:
     """A ghost shift (keep-logit units) as a float, or a ParameterError: finite, >= 0.
 
@@ -149,11 +201,4 @@ def check_ghost_shift(value: object) -> float:
     ...
     edeflare.errors.ParameterError: ghost_shift must be a finite number >= 0, got -1.0
     """
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float, np.integer, np.floating))
-        or not math.isfinite(value)
-        or value < 0
-    ):
-        raise ParameterError(f"ghost_shift must be a finite number >= 0, got {value!r}")
-    return float(value)
+    return check_logit_shift(value, "ghost_shift")

@@ -38,6 +38,7 @@ from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
 from .ghosts import check_ghost_shift, in_ghost_prior
+from .halos import check_halo_shift, in_halo_prior
 from .weights import ModelCard, load_model
 
 __all__ = [
@@ -170,6 +171,11 @@ class ModelDeflarer:
         inside its window's ghost prior (:mod:`edeflare.models.ghosts`: where a
         reflective ghost of the window's lights can be). Default: the model card's
         (0, off, unless the card says otherwise).
+    halo_shift : float, optional
+        Mask models: how much lower (in logit units) the keep logit of an event is
+        inside its window's halo prior (:mod:`edeflare.models.halos`: from just
+        outside each light out to six of its radii). Default: the model card's (0,
+        off, unless the card says otherwise).
 
     Attributes
     ----------
@@ -193,6 +199,7 @@ class ModelDeflarer:
         runtime: str = "auto",
         keep_threshold: float | None = None,
         ghost_shift: float | None = None,
+        halo_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -237,10 +244,13 @@ class ModelDeflarer:
             raise EdeflareError(f"keep_threshold must be in (0, 1), got {self.keep_threshold}")
         shift = card.ghost_shift if ghost_shift is None else ghost_shift
         self.ghost_shift = check_ghost_shift(shift)
-        if self.ghost_shift and not isinstance(model, FlareMaskNet):
-            raise EdeflareError(
-                f"{weights}: ghost_shift needs a mask model, not a {card.preset} (voxel-to-voxel)"
-            )
+        shift = card.halo_shift if halo_shift is None else halo_shift
+        self.halo_shift = check_halo_shift(shift)
+        for name in ("ghost_shift", "halo_shift"):
+            if getattr(self, name) and not isinstance(model, FlareMaskNet):
+                raise EdeflareError(
+                    f"{weights}: {name} needs a mask model, not a {card.preset} (voxel-to-voxel)"
+                )
         self.decoder = decoder
         self.batch_windows = int(batch_windows)
         self.seed = int(seed)
@@ -385,6 +395,9 @@ class ModelDeflarer:
         if self.ghost_shift:
             for (_, events), v in zip(batch, out, strict=True):
                 v -= self.ghost_shift * in_ghost_prior(events, sensor_size, w)
+        if self.halo_shift:
+            for (_, events), v in zip(batch, out, strict=True):
+                v -= self.halo_shift * in_halo_prior(events, sensor_size, w)
         return out
 
     def _run_mask(

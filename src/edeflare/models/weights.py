@@ -66,6 +66,7 @@ class ModelCard:
     notes: str = ""
     keep_threshold: float = 0.5  # mask models: keep an event above this keep probability
     ghost_shift: float = 0.0  # mask models: keep logit lowered in the ghost prior (ghosts.py)
+    halo_shift: float = 0.0  # mask models: keep logit lowered in the halo prior (halos.py)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""

@@ -1,0 +1,231 @@
+r"""Where a window's scattered-light halos are: a parameter-free prior from the lights.
+
+Scattered light falls off with distance from its source. Measured on real recordings
+(``benchmarks/flare_stats.py``; :mod:`edeflare.sim.sensing`), a sensor fires the pixels
+of a bright light's scattered light from just outside its disc to about
+:data:`HALO_EXTENT` source radii out, sparsely; beyond that, events are the scene's. A
+mask model decides per event from what its cells show, and a sparse scattered event 50
+px from a lamp looks like a sparse scene event; it cannot know that the lamp makes
+events there more likely to be flare than the same event elsewhere. This prior says so.
+
+Each light of a window (the same test as the ghost prior's, :func:`light_cells`:
+``cell x cell`` pixels firing at least :data:`~edeflare.models.ghosts.LIGHT_RATE`
+events per pixel and millisecond) is the set of its bright pixels (those firing at
+that rate themselves), and its radius is that of the largest disc inside it: for a
+still light, the disc's radius; for a light that moves during the window and sweeps a
+stroke, half the stroke's width, the radius of the light itself. The prior is the
+band from ``margin_px`` outside the light's pixels to ``(extent - 1)`` radii beyond
+them (for a disc: out to ``extent`` radii from its centre), leaving out the light's own
+cells and the eight around each.
+:class:`~edeflare.models.infer.ModelDeflarer` lowers the keep logit of the events in
+it by the card's ``halo_shift``: an event there is dropped only where the network
+already leaned towards dropping it (the shift is a prior odds ratio, not a verdict).
+A window without a light is left alone.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from ..events import SensorSize, check_sensor_size
+from .ghosts import LIGHT_RATE, check_logit_shift, light_cells
+
+__all__ = ["HALO_EXTENT", "check_halo_shift", "halo_pixels", "in_halo_prior", "light_pixels"]
+
+HALO_EXTENT = 6.0
+"""How far a halo reaches, in source radii from the source's centre: real sensors fire
+scattered-light pixels 2-6 radii out (:mod:`edeflare.sim.sensing`)."""
+
+_SQUARE = np.ones((3, 3), dtype=bool)
+
+
+def _lights(
+    events: np.ndarray, sensor_size: SensorSize, window_us: int, cell: int
+) -> tuple[np.ndarray, list[tuple[slice, slice, np.ndarray, float]]]:
+    """The light cells, and per light: its box (pixel slices), its pixels in the box, its
+    radius. Only the lights' neighbourhoods are looked at, never the whole frame."""
+    width, height = check_sensor_size(sensor_size)
+    lights = light_cells(events, sensor_size, window_us, cell=cell)
+    found: list[tuple[slice, slice, np.ndarray, float]] = []
+    if not lights.any():
+        return lights, found
+    cells, _ = ndimage.label(lights, structure=_SQUARE)
+    # a light's edge pixels can sit in the cells next to its own, below the cells' rate
+    grown = ndimage.grey_dilation(cells, size=(3, 3))
+    rate = LIGHT_RATE * window_us / 1000.0
+    x, y = events["x"], events["y"]
+    for k, (cy, cx) in enumerate(ndimage.find_objects(grown), start=1):
+        ys = slice(cy.start * cell, min(cy.stop * cell, height))
+        xs = slice(cx.start * cell, min(cx.stop * cell, width))
+        h, w = ys.stop - ys.start, xs.stop - xs.start
+        sel = (x >= xs.start) & (x < xs.stop) & (y >= ys.start) & (y < ys.stop)
+        count = np.bincount(
+            (y[sel] - ys.start).astype(np.int64) * w + (x[sel] - xs.start), minlength=h * w
+        ).reshape(h, w)
+        mine = np.repeat(np.repeat(grown[cy, cx] == k, cell, axis=0), cell, axis=1)[:h, :w]
+        own = ndimage.binary_fill_holes((count >= rate) & mine)
+        if own.any():
+            radius = float(ndimage.distance_transform_edt(np.pad(own, 1)).max())
+            found.append((ys, xs, own, max(radius, 1.0)))
+    return lights, found
+
+
+def light_pixels(
+    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels of a window's lights, labelled, and each light's radius.
+
+    A light is a connected group (8-neighbourhood) of :func:`light_cells`. Its pixels
+    are the bright ones (firing at :data:`LIGHT_RATE` themselves) in those cells and
+    the cells next to them, with their holes filled; its radius is the largest
+    distance from one of them to a pixel outside (at least 1).
+
+    Returns
+    -------
+    labels : numpy.ndarray
+        int, ``(height, width)``: 0 off the lights, ``k`` on the ``k``-th.
+    radii : numpy.ndarray
+        float, one per light (``radii[k - 1]`` is light ``k``'s).
+
+    Examples
+    --------
+    A 10x10 block firing 20 events per pixel in 20 ms: its centre pixels are 5 px
+    from the nearest pixel outside it.
+
+    >>> from edeflare.events import make_events
+    >>> yy, xx = np.mgrid[20:30, 40:50]
+    >>> n = 20 * xx.size
+    >>> ev = make_events(np.arange(n), np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20),
+    ...                  np.ones(n))
+    >>> labels, radii = light_pixels(ev, (64, 48), 20_000)
+    >>> int((labels == 1).sum()), radii.tolist()
+    (100, [5.0])
+    """
+    width, height = check_sensor_size(sensor_size)
+    labels = np.zeros((height, width), dtype=np.int64)
+    _, found = _lights(events, sensor_size, window_us, cell)
+    for k, (ys, xs, own, _) in enumerate(found, start=1):
+        labels[ys, xs][own] = k
+    return labels, np.array([r for *_, r in found])
+
+
+def _bands(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    cell: int,
+    extent: float,
+    margin_px: float,
+) -> tuple[np.ndarray, list[tuple[slice, slice, np.ndarray]]]:
+    """The light cells, and per light the box around it and its halo band in the box."""
+    width, height = check_sensor_size(sensor_size)
+    if not extent > 1.0 or not margin_px >= 0.0:
+        raise ValueError(f"extent must be > 1 and margin_px >= 0, got {extent} and {margin_px}")
+    lights, found = _lights(events, sensor_size, window_us, cell)
+    bands = []
+    for ys, xs, own, radius in found:
+        reach = (extent - 1.0) * radius
+        pad = math.ceil(reach) + 1
+        by = slice(max(ys.start - pad, 0), min(ys.stop + pad, height))
+        bx = slice(max(xs.start - pad, 0), min(xs.stop + pad, width))
+        off = np.ones((by.stop - by.start, bx.stop - bx.start), dtype=bool)
+        oy, ox = ys.start - by.start, xs.start - bx.start
+        off[oy : oy + own.shape[0], ox : ox + own.shape[1]] = ~own
+        # each pixel's distance to the light's nearest pixel (scipy's exact Euclidean
+        # distance transform, on the light's neighbourhood only)
+        d = ndimage.distance_transform_edt(off)
+        bands.append((by, bx, (d > margin_px) & (d <= reach)))
+    return lights, bands
+
+
+def halo_pixels(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    *,
+    cell: int = 8,
+    extent: float = HALO_EXTENT,
+    margin_px: float = 2.0,
+) -> np.ndarray:
+    """The pixels of a window's halo prior: ``(height, width)`` bool.
+
+    Parameters
+    ----------
+    events : structured array
+        One window's events.
+    sensor_size : (width, height)
+    window_us : int
+        The window's length (what the light rate is counted over).
+    cell : int
+        Cell size of the light test, in pixels.
+    extent : float
+        How far each halo reaches, in its light's radii from a still light's centre
+        (> 1): ``(extent - 1)`` radii beyond the light's pixels.
+    margin_px : float
+        Pixels next to each light left out (its rim belongs to it).
+
+    Returns
+    -------
+    numpy.ndarray
+        True where an event would be in a halo and in no light.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> yy, xx = np.mgrid[20:30, 40:50]
+    >>> n = 20 * xx.size
+    >>> ev = make_events(np.arange(n), np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20),
+    ...                  np.ones(n))
+    >>> p = halo_pixels(ev, (96, 64), 20_000)   # radius 5: out to 25 px beyond the block
+    >>> bool(p[24, 44]), bool(p[24, 60]), bool(p[24, 74]), bool(p[24, 75])
+    (False, True, True, False)
+    """
+    width, height = check_sensor_size(sensor_size)
+    lights, bands = _bands(events, sensor_size, window_us, cell, extent, margin_px)
+    prior = np.zeros((height, width), dtype=bool)
+    for by, bx, band in bands:
+        prior[by, bx] |= band
+    near = ndimage.binary_dilation(lights, structure=_SQUARE)  # with the 8 cells around
+    return prior & ~np.repeat(np.repeat(near, cell, axis=0), cell, axis=1)[:height, :width]
+
+
+def in_halo_prior(
+    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
+) -> np.ndarray:
+    """Whether each event of a window lies in its :func:`halo_pixels`.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> yy, xx = np.mgrid[20:30, 40:50]
+    >>> n = 20 * xx.size
+    >>> ev = make_events(np.arange(n), np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20),
+    ...                  np.ones(n))
+    >>> far = make_events([n, n + 1], [60, 90], [24, 60], [1, 0])  # 11 px and 50 px out
+    >>> in_halo_prior(np.concatenate([ev, far]), (96, 64), 20_000)[-3:].tolist()
+    [False, True, False]
+    """
+    lights, bands = _bands(events, sensor_size, window_us, cell, HALO_EXTENT, 2.0)
+    inside = np.zeros(events.size, dtype=bool)
+    if not bands:
+        return inside
+    x, y = events["x"].astype(np.int64), events["y"].astype(np.int64)
+    for by, bx, band in bands:
+        sel = np.flatnonzero((x >= bx.start) & (x < bx.stop) & (y >= by.start) & (y < by.stop))
+        inside[sel[band[y[sel] - by.start, x[sel] - bx.start]]] = True
+    near = ndimage.binary_dilation(lights, structure=_SQUARE)  # with the 8 cells around
+    return inside & ~near[y // cell, x // cell]
+
+
+def check_halo_shift(value: object) -> float:
+    """A halo shift (keep-logit units) as a float, or a ParameterError: finite, >= 0.
+
+    Examples
+    --------
+    >>> check_halo_shift(1)
+    1.0
+    """
+    return check_logit_shift(value, "halo_shift")

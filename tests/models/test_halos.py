@@ -1,0 +1,126 @@
+"""The halo prior (the annulus around each window's lights) and its logit shift."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import random_events
+from edeflare.deflare import create_method
+from edeflare.errors import EdeflareError, ParameterError
+from edeflare.events import make_events, merge_events
+from edeflare.models import create_model
+from edeflare.models.halos import HALO_EXTENT, halo_pixels, in_halo_prior, light_pixels
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.weights import ModelCard, save_model
+
+SIZE = (96, 64)
+
+
+def _block(x0: int, y0: int, side: int = 10, per_pixel: int = 20, t0: int = 0) -> np.ndarray:
+    """``per_pixel`` events in each pixel of a ``side`` x ``side`` block, within 20 ms."""
+    yy, xx = np.mgrid[y0 : y0 + side, x0 : x0 + side]
+    n = per_pixel * xx.size
+    return make_events(
+        t0 + np.arange(n) * (20_000 // n),
+        np.tile(xx.ravel(), per_pixel),
+        np.tile(yy.ravel(), per_pixel),
+        np.ones(n),
+    )
+
+
+def test_a_light_is_its_bright_pixels_and_its_radius_the_largest_disc_inside():
+    labels, radii = light_pixels(_block(40, 20), SIZE, 20_000)
+    expected = np.zeros((64, 96), dtype=int)
+    expected[20:30, 40:50] = 1
+    np.testing.assert_array_equal(labels, expected)
+    assert radii.tolist() == [5.0]  # the block's centre pixels are 5 px from outside it
+    # two lights far apart are two; a hole in one is filled
+    two = merge_events(_block(0, 0, side=8), _block(70, 40, side=16, per_pixel=10))
+    two = two[~((two["x"] == 77) & (two["y"] == 47))]
+    labels, radii = light_pixels(two, SIZE, 20_000)
+    assert sorted(np.bincount(labels.ravel())[1:].tolist()) == [64, 256]
+    assert sorted(radii.tolist()) == [4.0, 8.0]
+    # a light that sweeps a stroke during the window: its radius is half the stroke's
+    # width, not that of a disc of the stroke's area
+    stroke = merge_events(*(_block(10 + 6 * i, 30, side=6, t0=i) for i in range(10)))
+    assert light_pixels(stroke, SIZE, 20_000)[1].tolist() == [3.0]
+
+
+def test_a_light_needs_its_rate():
+    # one whole 8x8 cell: 5 events per pixel in 20 ms is the rate (0.25 / px / ms); 4 is
+    # not, nor 5 in 40 ms
+    assert light_pixels(_block(40, 16, side=8, per_pixel=5), SIZE, 20_000)[1].size == 1
+    assert light_pixels(_block(40, 16, side=8, per_pixel=4), SIZE, 20_000)[1].size == 0
+    assert light_pixels(_block(40, 16, side=8, per_pixel=5), SIZE, 40_000)[1].size == 0
+    assert not halo_pixels(make_events([], [], [], []), SIZE, 20_000).any()
+
+
+def test_the_halo_is_the_band_from_the_rim_to_five_radii_beyond_the_light():
+    p = halo_pixels(_block(40, 20), SIZE, 20_000)
+    # each pixel's distance to the nearest pixel of the block (x 40-49, y 20-29)
+    yy, xx = np.mgrid[0:64, 0:96]
+    d = np.hypot(np.clip(xx, 40, 49) - xx, np.clip(yy, 20, 29) - yy)
+    # the light's cells are those its block fills at the rate: x 40-47, y 16-31 (cells
+    # x 5, y 2-3; the column x 48-55 holds too few); out with the 8 cells around each:
+    # cells x 4-6, y 1-4 -> pixels x 32-55, y 8-39
+    near = np.zeros((64, 96), dtype=bool)
+    near[8:40, 32:56] = True
+    reach = (HALO_EXTENT - 1) * 5.0
+    np.testing.assert_array_equal(p, (d > 2.0) & (d <= reach) & ~near)
+    assert p[24, 56] and p[24, 74] and not p[24, 75]
+    wider = halo_pixels(_block(40, 20), SIZE, 20_000, extent=8.0)
+    assert wider[24, 84] and not p[24, 84]
+    with pytest.raises(ValueError, match="extent must be > 1"):
+        halo_pixels(_block(40, 20), SIZE, 20_000, extent=1.0)
+
+
+def test_in_halo_prior_reads_each_events_pixel():
+    far = make_events([1, 2, 3], [70, 90, 44], [24, 60, 36], [1, 0, 1])
+    ev = merge_events(_block(40, 20), far)
+    inside = in_halo_prior(ev, SIZE, 20_000)
+    np.testing.assert_array_equal(inside, halo_pixels(ev, SIZE, 20_000)[ev["y"], ev["x"]])
+    # (70, 24): 21 px from the light's pixels; (90, 60): 50.6; (44, 36): 7, but in the
+    # cell below the light's
+    assert inside[ev["x"] == 70].all() and not inside[ev["x"] == 90].any()
+    assert not inside[(ev["x"] == 44) & (ev["y"] == 36)].any()
+
+
+def test_the_shift_lowers_exactly_the_logits_inside_the_prior(rng):
+    ev = merge_events(_block(40, 20), random_events(rng, 300, SIZE, t0=0, span_us=20_000))
+    weights = bundled_weights()
+    plain = ModelDeflarer(weights, halo_shift=0.0).window_logits([(0, ev)], SIZE)[0]
+    shifted = ModelDeflarer(weights, halo_shift=2.5).window_logits([(0, ev)], SIZE)[0]
+    inside = in_halo_prior(ev, SIZE, 20_000)
+    assert 0 < inside.sum() < len(ev)
+    np.testing.assert_allclose(plain - shifted, 2.5 * inside, atol=1e-5)
+    # the method keeps a subset, and drops more only inside the prior
+    kept = create_method("model", halo_shift=0.0)(ev, SIZE, rng=0)
+    kept_shifted = create_method("model", halo_shift=6.0)(ev, SIZE, rng=0)
+    assert np.isin(kept_shifted, kept).all() and len(kept_shifted) < len(kept)
+    lost = kept[~np.isin(kept, kept_shifted)]
+    assert in_halo_prior(ev, SIZE, 20_000)[np.isin(ev, lost)].all()
+
+
+def test_without_a_light_the_shift_changes_nothing(rng):
+    ev = random_events(rng, 2_000, SIZE, t0=0, span_us=100_000)
+    plain = create_method("model", halo_shift=0.0)(ev, SIZE, rng=0)
+    np.testing.assert_array_equal(create_method("model", halo_shift=5.0)(ev, SIZE, rng=0), plain)
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), True, "2"])
+def test_a_bad_halo_shift_is_refused(bad):
+    with pytest.raises(ParameterError, match="halo_shift must be a finite number >= 0"):
+        create_method("model", halo_shift=bad)
+
+
+def test_the_shift_needs_a_mask_model_and_defaults_to_the_cards(tmp_path):
+    path = tmp_path / "v.safetensors"
+    save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
+    with pytest.raises(EdeflareError, match="halo_shift needs a mask model"):
+        ModelDeflarer(path, halo_shift=1.0)
+    assert ModelDeflarer(path).halo_shift == 0.0
+    carded = tmp_path / "m.safetensors"
+    save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", halo_shift=1.5))
+    assert ModelDeflarer(carded).halo_shift == 1.5
+    assert ModelDeflarer(carded, halo_shift=0.0).halo_shift == 0.0
