@@ -124,3 +124,24 @@ def test_the_shift_needs_a_mask_model_and_defaults_to_the_cards(tmp_path):
     save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", halo_shift=1.5))
     assert ModelDeflarer(carded).halo_shift == 1.5
     assert ModelDeflarer(carded, halo_shift=0.0).halo_shift == 0.0
+
+
+def test_the_events_band_is_the_pixel_maps_band(rng):
+    # in_halo_prior measures distances at the events (a k-d tree of each light's edge),
+    # halo_pixels on a pixel map (a distance transform): the same band, exactly. Three
+    # lights (a disc, a square, a stroke) over random events, one near the sensor's edge.
+    size = (320, 240)
+    yy, xx = np.mgrid[-9:10, -9:10]
+    disc = np.hypot(xx, yy) <= 9
+    lit = make_events(
+        np.arange(30 * disc.sum()) % 20_000,
+        np.tile(150 + xx[disc], 30),
+        np.tile(120 + yy[disc], 30),
+        np.ones(30 * disc.sum()),
+    )
+    stroke = merge_events(*(_block(200 + 6 * i, 30, side=6, t0=i) for i in range(12)))
+    ev = merge_events(lit, _block(2, 200, side=12), stroke,
+                      random_events(rng, 20_000, size, t0=0, span_us=20_000))  # fmt: skip
+    inside = in_halo_prior(ev, size, 20_000)
+    np.testing.assert_array_equal(inside, halo_pixels(ev, size, 20_000)[ev["y"], ev["x"]])
+    assert light_pixels(ev, size, 20_000)[1].size == 3 and 500 < inside.sum() < 10_000

@@ -1,0 +1,89 @@
+"""What the default model's priors cost in time, on recordings with bright lights.
+
+The halo prior (``edeflare.models.halos``, on in the bundled default) and the ghost
+prior (``edeflare.models.ghosts``, off unless asked) are per-window work after the
+network: a light test on 8x8 cells, and around each light a distance transform. A
+window without a light costs one cell count. Each case de-flares one recording in
+memory (``edeflare.deflare``, the model loaded and warmed once per row), best of
+``--repeat`` runs. The reference in the same run is the same model with both priors
+off (``halo_shift=0``): ``ratio`` is each row's time over it.
+
+Cases: the two annotated real recordings with lights (Prophesee Gen3 rotating light,
+640x480, 50 ms; DAVIS346 lamps, 130 ms) and a synthetic 1280x720 second with a
+bright disc of radius 20 px crossing the sensor over uniform background events
+(1 M events/s), the largest sensor size.
+
+Run: ``python benchmarks/bench_priors.py [--repeat N]``; writes
+``results/priors.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from _common import REAL, random_events, report
+
+from edeflare.deflare import create_method
+from edeflare.events import EVENT_DTYPE, merge_events
+from edeflare.io import read_events
+
+ROWS = {
+    "default, priors off (reference)": {"halo_shift": 0.0},
+    "default (halo shift 1)": {},
+    "default + ghost shift 2": {"ghost_shift": 2.0},
+}
+
+
+def moving_light(size: tuple[int, int], span_us: int = 1_000_000) -> np.ndarray:
+    """A disc of radius 20 px crossing the sensor, 40 events per pixel and 20 ms."""
+    width, height = size
+    yy, xx = np.mgrid[-20:21, -20:21]
+    disc = np.hypot(xx, yy) <= 20
+    dx, dy = xx[disc], yy[disc]
+    chunks = []
+    for k in range(span_us // 500):  # a step every 0.5 ms, one event per disc pixel
+        t = k * 500
+        cx = int(40 + (width - 80) * t / span_us)
+        ev = np.empty(dx.size, dtype=EVENT_DTYPE)
+        ev["t"], ev["x"], ev["y"], ev["p"] = t, cx + dx, height // 2 + dy, k % 2
+        chunks.append(ev)
+    return np.concatenate(chunks)
+
+
+def cases():
+    for name in ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4"):
+        ev, size = read_events(REAL / name)
+        yield name.split(".")[0], ev, size
+    size = (1280, 720)
+    ev = merge_events(moving_light(size), random_events(1_000_000, size, 0, 1_000_000))
+    yield "1280x720, a moving light, 1 M ev/s", ev, size
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    methods = {label: create_method("model", **kw) for label, kw in ROWS.items()}
+    rows = []
+    for case, ev, size in cases():
+        span = (int(ev["t"][-1]) - int(ev["t"][0])) / 1e6
+        ref = None
+        for label, method in methods.items():
+            method(ev[: min(ev.size, 50_000)], size, rng=0)  # load and warm up
+            times = []
+            for _ in range(args.repeat):
+                t0 = time.perf_counter()
+                out = method(ev, size, rng=0)
+                times.append(time.perf_counter() - t0)
+            best = min(times)
+            ref = best if ref is None else ref
+            rows.append({"case": case, "method": label, "events": ev.size, "kept": out.size,
+                         "seconds": round(best, 3), "rtf": round(best / span, 2),
+                         "ratio": round(best / ref, 3)})  # fmt: skip
+    report("priors", rows, ["case", "method", "events", "kept", "seconds", "rtf", "ratio"])
+
+
+if __name__ == "__main__":
+    main()
