@@ -7,12 +7,9 @@ import pytest
 
 from conftest import random_events
 from edeflare.deflare import create_method
-from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
-from edeflare.models import create_model
 from edeflare.models.ghosts import LIGHT_RATE, ghost_cells, in_ghost_prior
 from edeflare.models.infer import ModelDeflarer, bundled_weights
-from edeflare.models.weights import ModelCard, save_model
 
 
 def _light(x0: int, y0: int, n: int = 400, size: int = 8) -> np.ndarray:
@@ -79,21 +76,3 @@ def test_the_shift_lowers_exactly_the_logits_inside_the_prior(rng):
     assert np.isin(kept_shifted, kept).all() and len(kept_shifted) < len(kept)
     lost = kept[~np.isin(kept, kept_shifted)]
     assert in_ghost_prior(ev, size, 20_000)[np.isin(ev, lost)].all()
-
-
-@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), True, "2"])
-def test_a_bad_ghost_shift_is_refused(bad):
-    with pytest.raises(ParameterError, match="ghost_shift"):
-        create_method("model", ghost_shift=bad)
-
-
-def test_the_shift_needs_a_mask_model_and_defaults_to_the_cards(tmp_path):
-    path = tmp_path / "v.safetensors"
-    save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
-    with pytest.raises(EdeflareError, match="ghost_shift needs a mask model"):
-        ModelDeflarer(path, ghost_shift=1.0)
-    assert ModelDeflarer(path).ghost_shift == 0.0
-    carded = tmp_path / "m.safetensors"
-    save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", ghost_shift=1.5))
-    assert ModelDeflarer(carded).ghost_shift == 1.5
-    assert ModelDeflarer(carded, ghost_shift=0.0).ghost_shift == 0.0

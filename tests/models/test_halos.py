@@ -108,22 +108,24 @@ def test_without_a_light_the_shift_changes_nothing(rng):
     np.testing.assert_array_equal(create_method("model", halo_shift=5.0)(ev, SIZE, rng=0), plain)
 
 
+@pytest.mark.parametrize("name", ["halo_shift", "ghost_shift"])
 @pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), True, "2"])
-def test_a_bad_halo_shift_is_refused(bad):
-    with pytest.raises(ParameterError, match="halo_shift must be a finite number >= 0"):
-        create_method("model", halo_shift=bad)
+def test_a_bad_prior_shift_is_refused(name, bad):
+    with pytest.raises(ParameterError, match=f"{name} must be a finite number >= 0"):
+        create_method("model", **{name: bad})
 
 
-def test_the_shift_needs_a_mask_model_and_defaults_to_the_cards(tmp_path):
+@pytest.mark.parametrize("name", ["halo_shift", "ghost_shift"])
+def test_a_prior_shift_needs_a_mask_model_and_defaults_to_the_cards(name, tmp_path):
     path = tmp_path / "v.safetensors"
     save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
-    with pytest.raises(EdeflareError, match="halo_shift needs a mask model"):
-        ModelDeflarer(path, halo_shift=1.0)
-    assert ModelDeflarer(path).halo_shift == 0.0
+    with pytest.raises(EdeflareError, match=f"{name} needs a mask model"):
+        ModelDeflarer(path, **{name: 1.0})
+    assert getattr(ModelDeflarer(path), name) == 0.0
     carded = tmp_path / "m.safetensors"
-    save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", halo_shift=1.5))
-    assert ModelDeflarer(carded).halo_shift == 1.5
-    assert ModelDeflarer(carded, halo_shift=0.0).halo_shift == 0.0
+    save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", **{name: 1.5}))
+    assert getattr(ModelDeflarer(carded), name) == 1.5
+    assert getattr(ModelDeflarer(carded, **{name: 0.0}), name) == 0.0
 
 
 def test_the_events_band_is_the_pixel_maps_band(rng):
