@@ -223,6 +223,17 @@ def test_a_time_limit_stops_checkpointed_and_a_rerun_ends_as_the_straight_run(
     assert iterations == list(range(1, 13))
 
 
+def test_the_cli_says_where_a_time_limit_stopped_it(dataset, tmp_path, capsys):
+    from edeflare.cli import main
+
+    args = ["train", str(dataset), "--preset", "unet2d.tiny", "--iterations", "12"]
+    args += ["--batch-size", "2", "--crop", "8x8", "--out", str(tmp_path / "r")]
+    assert main([*args, "--time-limit", "0"]) == 0
+    assert "trained unet2d.tiny for 1 of 12 (time limit) iterations" in capsys.readouterr().out
+    assert main(args) == 0  # the rerun resumes and finishes
+    assert "trained unet2d.tiny for 12 iterations" in capsys.readouterr().out
+
+
 def test_resume_keeps_the_best_score_and_the_clock(dataset, tmp_path):
     cfg = _config(iterations=12)
     out = tmp_path / "r"

@@ -134,5 +134,9 @@ def run(args: argparse.Namespace) -> int:
         command="edeflare " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
     )
     if int(os.environ.get("RANK", "0")) == 0:  # once, not per DDP process
-        print(f"trained {config.preset} for {config.iterations} iterations: {final}")
+        from ..models.weights import read_card
+
+        done = int(read_card(final).metrics.get("iteration", config.iterations))
+        of = "" if done == config.iterations else f" of {config.iterations} (time limit)"
+        print(f"trained {config.preset} for {done}{of} iterations: {final}")
     return 0
