@@ -10,7 +10,13 @@ from edeflare.deflare import create_method
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
 from edeflare.models import create_model
-from edeflare.models.halos import HALO_EXTENT, halo_pixels, in_halo_prior, light_pixels
+from edeflare.models.halos import (
+    HALO_EXTENT,
+    MIN_LIGHT_RADIUS,
+    halo_pixels,
+    in_halo_prior,
+    light_pixels,
+)
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.weights import ModelCard, save_model
 
@@ -54,6 +60,20 @@ def test_a_light_needs_its_rate():
     assert light_pixels(_block(40, 16, side=8, per_pixel=4), SIZE, 20_000)[1].size == 0
     assert light_pixels(_block(40, 16, side=8, per_pixel=5), SIZE, 40_000)[1].size == 0
     assert not halo_pixels(make_events([], [], [], []), SIZE, 20_000).any()
+
+
+def test_a_hot_pixel_is_no_light_but_a_3x3_block_is():
+    # 400 events on one pixel in 20 ms pass its cell's rate (320), but a light is at
+    # least a solid 3x3 block (radius 2): no light, no halo
+    n = 400
+    hot = make_events(np.arange(n) * 50, np.full(n, 47), np.full(n, 20), np.ones(n))
+    ring = make_events([n * 50], [56], [20], [1])  # 9 px away, two cells over
+    ev = merge_events(hot, ring)
+    assert light_pixels(ev, SIZE, 20_000)[1].size == 0
+    assert not in_halo_prior(ev, SIZE, 20_000).any()
+    block = _block(45, 19, side=3, per_pixel=40)  # 360 events, radius 2: out to 10 px
+    assert light_pixels(block, SIZE, 20_000)[1].tolist() == [MIN_LIGHT_RADIUS]
+    assert in_halo_prior(merge_events(block, ring), SIZE, 20_000)[-1]
 
 
 def test_the_halo_is_the_band_from_the_rim_to_five_radii_beyond_the_light():

@@ -34,11 +34,22 @@ from scipy.spatial import cKDTree
 from ..events import SensorSize, check_sensor_size
 from .ghosts import LIGHT_RATE, check_logit_shift, light_cells
 
-__all__ = ["HALO_EXTENT", "check_halo_shift", "halo_pixels", "in_halo_prior", "light_pixels"]
+__all__ = [
+    "HALO_EXTENT",
+    "MIN_LIGHT_RADIUS",
+    "check_halo_shift",
+    "halo_pixels",
+    "in_halo_prior",
+    "light_pixels",
+]
 
 HALO_EXTENT = 6.0
 """How far a halo reaches, in source radii from the source's centre: real sensors fire
 scattered-light pixels 2-6 radii out (:mod:`edeflare.sim.sensing`)."""
+
+MIN_LIGHT_RADIUS = 2.0
+"""The thinnest light, in its radius: a solid 3x3 block. A hot pixel firing tens of
+kHz passes the cell rate on its own (Prophesee Gen3's do) but is no light."""
 
 _SQUARE = np.ones((3, 3), dtype=bool)
 _MARGIN_PX = 2.0  # pixels next to a light left out of its halo: its rim belongs to it
@@ -69,9 +80,9 @@ def _lights(
         ).reshape(h, w)
         mine = np.repeat(np.repeat(grown[cy, cx] == k, cell, axis=0), cell, axis=1)[:h, :w]
         own = ndimage.binary_fill_holes((count >= rate) & mine)
-        if own.any():
-            radius = float(ndimage.distance_transform_edt(np.pad(own, 1)).max())
-            found.append((ys, xs, own, max(radius, 1.0)))
+        radius = float(ndimage.distance_transform_edt(np.pad(own, 1)).max())
+        if radius >= MIN_LIGHT_RADIUS:
+            found.append((ys, xs, own, radius))
     return lights, found
 
 
@@ -83,7 +94,8 @@ def light_pixels(
     A light is a connected group (8-neighbourhood) of :func:`light_cells`. Its pixels
     are the bright ones (firing at :data:`LIGHT_RATE` themselves) in those cells and
     the cells next to them, with their holes filled; its radius is the largest
-    distance from one of them to a pixel outside (at least 1).
+    distance from one of them to a pixel outside, at least :data:`MIN_LIGHT_RADIUS`
+    (thinner groups, such as a lone hot pixel, are no light).
 
     Returns
     -------
