@@ -5,11 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import random_events
-from edeflare.deflare import create_method
 from edeflare.events import make_events, merge_events
 from edeflare.models.ghosts import LIGHT_RATE, ghost_cells, in_ghost_prior
-from edeflare.models.infer import ModelDeflarer, bundled_weights
 
 
 def _light(x0: int, y0: int, n: int = 400, size: int = 8) -> np.ndarray:
@@ -59,20 +56,3 @@ def test_bad_prior_settings_are_refused(kw, what):
         ghost_cells(_light(0, 0), (64, 64), 20_000, **kw)
     with pytest.raises(ValueError, match="window_us"):
         ghost_cells(_light(0, 0), (64, 64), 0)
-
-
-def test_the_shift_lowers_exactly_the_logits_inside_the_prior(rng):
-    size = (64, 64)
-    ev = merge_events(_light(0, 0), random_events(rng, 300, size, t0=0, span_us=20_000))
-    weights = bundled_weights()
-    plain = ModelDeflarer(weights).window_logits([(0, ev)], size)[0]
-    shifted = ModelDeflarer(weights, ghost_shift=2.5).window_logits([(0, ev)], size)[0]
-    inside = in_ghost_prior(ev, size, 20_000)
-    assert 0 < inside.sum() < len(ev)
-    np.testing.assert_allclose(plain - shifted, 2.5 * inside, atol=1e-5)
-    # the method keeps a subset, and drops more only inside the prior
-    kept = create_method("model", ghost_shift=0.0)(ev, size, rng=0)
-    kept_shifted = create_method("model", ghost_shift=4.0)(ev, size, rng=0)
-    assert np.isin(kept_shifted, kept).all() and len(kept_shifted) < len(kept)
-    lost = kept[~np.isin(kept, kept_shifted)]
-    assert in_ghost_prior(ev, size, 20_000)[np.isin(ev, lost)].all()

@@ -10,6 +10,7 @@ from edeflare.deflare import create_method
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
 from edeflare.models import create_model
+from edeflare.models.ghosts import in_ghost_prior
 from edeflare.models.halos import (
     HALO_EXTENT,
     MIN_LIGHT_RADIUS,
@@ -106,20 +107,27 @@ def test_in_halo_prior_reads_each_events_pixel():
     assert not inside[(ev["x"] == 44) & (ev["y"] == 36)].any()
 
 
-def test_the_shift_lowers_exactly_the_logits_inside_the_prior(rng):
-    ev = merge_events(_block(40, 20), random_events(rng, 300, SIZE, t0=0, span_us=20_000))
+@pytest.mark.parametrize(
+    ("name", "prior", "light", "size"),
+    [
+        ("halo_shift", in_halo_prior, (40, 20, 10, 20), SIZE),  # a light mid-frame
+        ("ghost_shift", in_ghost_prior, (0, 0, 8, 6), (64, 64)),  # in a corner: ghosts across
+    ],
+)
+def test_a_prior_shift_lowers_exactly_the_logits_inside_the_prior(name, prior, light, size, rng):
+    ev = merge_events(_block(*light), random_events(rng, 300, size, t0=0, span_us=20_000))
     weights = bundled_weights()
-    plain = ModelDeflarer(weights, halo_shift=0.0).window_logits([(0, ev)], SIZE)[0]
-    shifted = ModelDeflarer(weights, halo_shift=2.5).window_logits([(0, ev)], SIZE)[0]
-    inside = in_halo_prior(ev, SIZE, 20_000)
+    plain = ModelDeflarer(weights, **{name: 0.0}).window_logits([(0, ev)], size)[0]
+    shifted = ModelDeflarer(weights, **{name: 2.5}).window_logits([(0, ev)], size)[0]
+    inside = prior(ev, size, 20_000)
     assert 0 < inside.sum() < len(ev)
     np.testing.assert_allclose(plain - shifted, 2.5 * inside, atol=1e-5)
     # the method keeps a subset, and drops more only inside the prior
-    kept = create_method("model", halo_shift=0.0)(ev, SIZE, rng=0)
-    kept_shifted = create_method("model", halo_shift=6.0)(ev, SIZE, rng=0)
+    kept = create_method("model", **{name: 0.0})(ev, size, rng=0)
+    kept_shifted = create_method("model", **{name: 6.0})(ev, size, rng=0)
     assert np.isin(kept_shifted, kept).all() and len(kept_shifted) < len(kept)
     lost = kept[~np.isin(kept, kept_shifted)]
-    assert in_halo_prior(ev, SIZE, 20_000)[np.isin(ev, lost)].all()
+    assert prior(ev, size, 20_000)[np.isin(ev, lost)].all()
 
 
 def test_without_a_light_the_shift_changes_nothing(rng):
