@@ -8,7 +8,8 @@ mask model decides per event from what its cells show, and a sparse scattered ev
 px from a lamp looks like a sparse scene event; it cannot know that the lamp makes
 events there more likely to be flare than the same event elsewhere. This prior says so.
 
-Each light of a window (the same test as the ghost prior's, :func:`light_cells`:
+Each light of a window (the same test as the ghost prior's,
+:func:`~edeflare.models.ghosts.light_cells`:
 ``cell x cell`` pixels firing at least :data:`~edeflare.models.ghosts.LIGHT_RATE`
 events per pixel and millisecond) is the set of its bright pixels (those firing at
 that rate themselves), and its radius is that of the largest disc inside it: for a
