@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 import pytest
+import torch
 from PIL import Image
 
 from conftest import kill_at_random_moments, random_events, same_events
@@ -40,6 +41,30 @@ def test_info_reports_exact_figures(tmp_path, capsys):
     assert "span        10.000 ms" in out
     assert "rate        0.000 Mev/s" in out  # 4 events / 10 ms = 400 ev/s
     assert "ON fraction 0.7500" in out
+
+
+def test_info_prints_a_weights_files_card(tmp_path, capsys):
+    from safetensors.torch import save_file
+
+    from edeflare.models import create_model
+    from edeflare.models.weights import ModelCard, save_model
+
+    assert main(["info", "night"]) == 0  # a bundled model, by name
+    out = capsys.readouterr().out
+    assert "preset      mask.pixel (8 bins, 20 ms windows)" in out
+    assert (
+        "priors      halo_shift 1, ghost_shift 0" in out and "keep        probability > 0.5" in out
+    )
+    assert "score_davis_lamps_combined 0.793" in out
+    path = tmp_path / "m.safetensors"
+    save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny", seed=3))
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "preset      unet2d.tiny (8 bins, 20 ms windows)" in out and "priors" not in out
+    bare = tmp_path / "bare.safetensors"  # tensors, but no card
+    save_file({"w": torch.zeros(2)}, str(bare))
+    assert main(["info", str(bare)]) == 1
+    assert f"{bare}: no edeflare model card in the metadata" in capsys.readouterr().err
 
 
 def test_info_sensor_size_option_and_inference_warning(tmp_path, capsys):

@@ -1,4 +1,5 @@
-"""``edeflare info FILE``: format, sensor size, events, span, rate, ON fraction."""
+"""``edeflare info FILE``: format, sensor size, events, span, rate, ON fraction; or, for
+a model's weights, its card."""
 
 from __future__ import annotations
 
@@ -7,9 +8,14 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from ..errors import EdeflareError
 from ._common import GROUP_HELP, SIZE_HELP, sensor_size_arg
 
-HELP = "Describe an event file: format, sensor, events, span, rate, ON fraction."
+HELP = (
+    "Describe an event file (format, sensor, events, span, rate, ON fraction), or a "
+    "model's weights (.safetensors, .onnx or a bundled model's name: its card)."
+)
+_WEIGHTS = (".safetensors", ".onnx")
 
 
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
@@ -22,8 +28,17 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Stream the file once and print its figures."""
+    """Stream the file once and print its figures (or print a weights file's card)."""
     from ..io import open_events
+    from ..models.infer import bundled_weights
+
+    if args.file.suffix.lower() in _WEIGHTS:
+        return _card(args.file)
+    if not args.file.suffix and not args.file.exists():
+        try:  # a bundled model's name (night, eflare, paper)
+            return _card(bundled_weights(args.file.name))
+        except EdeflareError:
+            pass  # not one: the event reader names the missing file
 
     src = open_events(args.file, args.sensor_size, group=args.group)
     n = n_on = 0
@@ -49,4 +64,23 @@ def run(args: argparse.Namespace) -> int:
         rate = n / (span / 1e6) if span else float("inf")
         print(f"rate        {rate / 1e6:.3f} Mev/s")
         print(f"ON fraction {n_on / n:.4f}")
+    return 0
+
+
+def _card(path: Path) -> int:
+    """Print the model card of a weights file (no tensors loaded)."""
+    from ..models.weights import read_card
+
+    card = read_card(path)
+    print(f"file        {path}")
+    print(f"preset      {card.preset} ({card.bins} bins, {card.window_us / 1000:g} ms windows)")
+    if card.preset.startswith("mask."):
+        print(f"keep        probability > {card.keep_threshold:g}")
+        print(f"priors      halo_shift {card.halo_shift:g}, ghost_shift {card.ghost_shift:g}")
+    for key, value in card.metrics.items():
+        print(f"{key:<11} {value}")
+    for name in ("data", "command", "notes"):
+        text = getattr(card, name)
+        if text:
+            print(f"{name:<11} {text}")
     return 0
