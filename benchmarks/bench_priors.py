@@ -11,7 +11,9 @@ off (``halo_shift=0``): ``ratio`` is each row's time over it.
 Cases: the two annotated real recordings with lights (Prophesee Gen3 rotating light,
 640x480, 50 ms; DAVIS346 lamps, 130 ms) and a synthetic 1280x720 second with a
 bright disc of radius 20 px crossing the sensor over uniform background events
-(1 M events/s), the largest sensor size.
+(1 M events/s), the largest sensor size; and the same background under 50 still lights
+of 10x10 px (a street of lamps: each window's lights share one sorted pass over its
+events).
 
 Run: ``python benchmarks/bench_priors.py [--repeat N]``; writes
 ``results/priors.json``.
@@ -52,6 +54,22 @@ def moving_light(size: tuple[int, int], span_us: int = 1_000_000) -> np.ndarray:
     return np.concatenate(chunks)
 
 
+def many_lights(size: tuple[int, int], n: int = 50, span_us: int = 1_000_000) -> np.ndarray:
+    """``n`` still lights (10x10 px, 1 event per pixel every 2 ms) at seeded places."""
+    width, height = size
+    rng = np.random.default_rng(7)
+    yy, xx = np.mgrid[0:10, 0:10]
+    x0 = rng.integers(0, width - 10, n)[:, None] + xx.ravel()
+    y0 = rng.integers(0, height - 10, n)[:, None] + yy.ravel()
+    steps = np.arange(0, span_us, 2_000)
+    ev = np.empty(steps.size * x0.size, dtype=EVENT_DTYPE)
+    ev["t"] = np.repeat(steps, x0.size)
+    ev["x"] = np.tile(x0.ravel(), steps.size)
+    ev["y"] = np.tile(y0.ravel(), steps.size)
+    ev["p"] = 1
+    return ev
+
+
 def cases():
     for name in ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4"):
         ev, size = read_events(REAL / name)
@@ -59,6 +77,8 @@ def cases():
     size = (1280, 720)
     ev = merge_events(moving_light(size), random_events(1_000_000, size, 0, 1_000_000))
     yield "1280x720, a moving light, 1 M ev/s", ev, size
+    ev = merge_events(many_lights(size), random_events(1_000_000, size, 0, 1_000_000, seed=1))
+    yield "1280x720, 50 still lights, 1 M ev/s", ev, size
 
 
 def main() -> None:

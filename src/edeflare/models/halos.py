@@ -56,35 +56,81 @@ _SQUARE = np.ones((3, 3), dtype=bool)
 _MARGIN_PX = 2.0  # pixels next to a light left out of its halo: its rim belongs to it
 
 
+class _Coords:
+    """The events' pixel coordinates and flat cell indices, computed once per window."""
+
+    def __init__(self, events: np.ndarray, width: int, cell: int) -> None:
+        self.x, self.y = events["x"].astype(np.int64), events["y"].astype(np.int64)
+        self.cell, self.w = cell, -(-width // cell)
+        self.cid = (self.y // cell) * self.w + self.x // cell
+
+
+class _CellIndex:
+    """Some events of a window (``which``, indices into ``x`` and ``y``) grouped by cell,
+    to take those of a pixel box without a pass over all of them: a window with many
+    lights (a street of lamps) costs its candidate events once, sorted, and each light
+    only the events around it."""
+
+    def __init__(self, at: _Coords, which: np.ndarray) -> None:
+        self.x, self.y, self.cell, self.w = at.x, at.y, at.cell, at.w
+        ids = at.cid[which]
+        self.n_cells = int(ids.max()) + 1 if ids.size else 1
+        # a stable sort of small ints is a radix sort in numpy: cheap
+        small = ids.astype(np.uint16) if self.n_cells <= np.iinfo(np.uint16).max else ids
+        order = np.argsort(small, kind="stable")
+        self.which = which[order]
+        self.starts = np.searchsorted(ids[order], np.arange(self.n_cells + 1))
+
+    def box(self, ys: slice, xs: slice) -> np.ndarray:
+        """Indices of the events with ``ys.start <= y < ys.stop`` and the same in x."""
+        c0, c1 = xs.start // self.cell, (xs.stop - 1) // self.cell + 1
+        parts = [
+            self.which[self.starts[a] : self.starts[min(a + c1 - c0, self.n_cells)]]
+            for a in (
+                r * self.w + c0
+                for r in range(ys.start // self.cell, (ys.stop - 1) // self.cell + 1)
+            )
+            if a < self.n_cells
+        ]
+        if not parts:
+            return np.zeros(0, dtype=np.int64)
+        i = np.concatenate(parts)
+        x, y = self.x[i], self.y[i]
+        return i[(x >= xs.start) & (x < xs.stop) & (y >= ys.start) & (y < ys.stop)]
+
+
 def _lights(
     events: np.ndarray, sensor_size: SensorSize, window_us: int, cell: int
-) -> tuple[np.ndarray, list[tuple[slice, slice, np.ndarray, float]]]:
-    """The light cells, and per light: its box (pixel slices), its pixels in the box, its
-    radius. Only the lights' neighbourhoods are looked at, never the whole frame."""
+) -> tuple[np.ndarray, list[tuple[slice, slice, np.ndarray, float]], _Coords | None]:
+    """The light cells; per light its box (pixel slices), its pixels in the box and its
+    radius; the events' coordinates (None without a light). Only the lights'
+    neighbourhoods are looked at, never the whole frame."""
     width, height = check_sensor_size(sensor_size)
     lights = light_cells(events, sensor_size, window_us, cell=cell)
     found: list[tuple[slice, slice, np.ndarray, float]] = []
     if not lights.any():
-        return lights, found
+        return lights, found, None
+    at = _Coords(events, width, cell)
+    x, y = at.x, at.y
     cells, _ = ndimage.label(lights, structure=_SQUARE)
     # a light's edge pixels can sit in the cells next to its own, below the cells' rate
     grown = ndimage.grey_dilation(cells, size=(3, 3))
+    index = _CellIndex(at, np.flatnonzero(grown.ravel()[at.cid]))
     rate = LIGHT_RATE * window_us / 1000.0
-    x, y = events["x"], events["y"]
     for k, (cy, cx) in enumerate(ndimage.find_objects(grown), start=1):
         ys = slice(cy.start * cell, min(cy.stop * cell, height))
         xs = slice(cx.start * cell, min(cx.stop * cell, width))
         h, w = ys.stop - ys.start, xs.stop - xs.start
-        sel = (x >= xs.start) & (x < xs.stop) & (y >= ys.start) & (y < ys.stop)
-        count = np.bincount(
-            (y[sel] - ys.start).astype(np.int64) * w + (x[sel] - xs.start), minlength=h * w
-        ).reshape(h, w)
+        sel = index.box(ys, xs)
+        count = np.bincount((y[sel] - ys.start) * w + (x[sel] - xs.start), minlength=h * w).reshape(
+            h, w
+        )
         mine = np.repeat(np.repeat(grown[cy, cx] == k, cell, axis=0), cell, axis=1)[:h, :w]
         own = ndimage.binary_fill_holes((count >= rate) & mine)
         radius = float(ndimage.distance_transform_edt(np.pad(own, 1)).max())
         if radius >= MIN_LIGHT_RADIUS:
             found.append((ys, xs, own, radius))
-    return lights, found
+    return lights, found, at
 
 
 def light_pixels(
@@ -121,7 +167,7 @@ def light_pixels(
     """
     width, height = check_sensor_size(sensor_size)
     labels = np.zeros((height, width), dtype=np.int64)
-    _, found = _lights(events, sensor_size, window_us, cell)
+    _, found, _ = _lights(events, sensor_size, window_us, cell)
     for k, (ys, xs, own, _) in enumerate(found, start=1):
         labels[ys, xs][own] = k
     return labels, np.array([r for *_, r in found])
@@ -139,7 +185,7 @@ def _bands(
     width, height = check_sensor_size(sensor_size)
     if not extent > 1.0 or not margin_px >= 0.0:
         raise ValueError(f"extent must be > 1 and margin_px >= 0, got {extent} and {margin_px}")
-    lights, found = _lights(events, sensor_size, window_us, cell)
+    lights, found, _ = _lights(events, sensor_size, window_us, cell)
     bands = []
     for ys, xs, own, radius in found:
         reach = (extent - 1.0) * radius
@@ -224,27 +270,31 @@ def in_halo_prior(
     [False, True, False]
     """
     width, height = check_sensor_size(sensor_size)
-    lights, found = _lights(events, sensor_size, window_us, cell)
+    lights, found, at = _lights(events, sensor_size, window_us, cell)
     inside = np.zeros(events.size, dtype=bool)
-    if not found:
+    if not found or at is None:
         return inside
-    x, y = events["x"].astype(np.int64), events["y"].astype(np.int64)
+    x, y = at.x, at.y
     near = ndimage.binary_dilation(lights, structure=_SQUARE)  # with the 8 cells around
-    free = ~near[y // cell, x // cell]
-    for ys, xs, own, radius in found:
+    boxes = []
+    around = np.zeros_like(lights)  # the cells of every light's box, its band's reach added
+    for ys, xs, _, radius in found:
+        reach = (HALO_EXTENT - 1.0) * radius
+        pad = math.ceil(reach) + 1
+        by = slice(max(ys.start - pad, 0), min(ys.stop + pad, height))
+        bx = slice(max(xs.start - pad, 0), min(xs.stop + pad, width))
+        around[
+            by.start // cell : (by.stop - 1) // cell + 1,
+            bx.start // cell : (bx.stop - 1) // cell + 1,
+        ] = True
+        boxes.append((by, bx, reach))
+    index = _CellIndex(at, np.flatnonzero((around & ~near).ravel()[at.cid]))
+    for (ys, xs, own, _), (by, bx, reach) in zip(found, boxes, strict=True):
         # the same band as halo_pixels', measured at the events instead of on a pixel
         # map: a k-d tree of the light's edge pixels (the nearest light pixel of a point
         # outside is on the edge) answers for the few events around a light in a
         # fraction of a distance transform's time over the light's whole neighbourhood
-        reach = (HALO_EXTENT - 1.0) * radius
-        pad = math.ceil(reach) + 1
-        sel = np.flatnonzero(
-            free
-            & (x >= max(xs.start - pad, 0))
-            & (x < min(xs.stop + pad, width))
-            & (y >= max(ys.start - pad, 0))
-            & (y < min(ys.stop + pad, height))
-        )
+        sel = index.box(by, bx)
         if sel.size == 0:
             continue
         edge = np.argwhere(own & ~ndimage.binary_erosion(own, border_value=0))
