@@ -66,13 +66,13 @@ class _Coords:
 
 
 class _CellIndex:
-    """Some events of a window (``which``, indices into ``x`` and ``y``) grouped by cell,
+    """Some events of a window (``which``, indices into ``at``'s) grouped by cell,
     to take those of a pixel box without a pass over all of them: a window with many
     lights (a street of lamps) costs its candidate events once, sorted, and each light
     only the events around it."""
 
     def __init__(self, at: _Coords, which: np.ndarray) -> None:
-        self.x, self.y, self.cell, self.w = at.x, at.y, at.cell, at.w
+        self.at = at
         ids = at.cid[which]
         self.n_cells = int(ids.max()) + 1 if ids.size else 1
         # a stable sort of small ints is a radix sort in numpy: cheap
@@ -83,19 +83,19 @@ class _CellIndex:
 
     def box(self, ys: slice, xs: slice) -> np.ndarray:
         """Indices of the events with ``ys.start <= y < ys.stop`` and the same in x."""
-        c0, c1 = xs.start // self.cell, (xs.stop - 1) // self.cell + 1
+        at = self.at
+        c0, c1 = xs.start // at.cell, (xs.stop - 1) // at.cell + 1
         parts = [
             self.which[self.starts[a] : self.starts[min(a + c1 - c0, self.n_cells)]]
             for a in (
-                r * self.w + c0
-                for r in range(ys.start // self.cell, (ys.stop - 1) // self.cell + 1)
+                r * at.w + c0 for r in range(ys.start // at.cell, (ys.stop - 1) // at.cell + 1)
             )
             if a < self.n_cells
         ]
         if not parts:
             return np.zeros(0, dtype=np.int64)
         i = np.concatenate(parts)
-        x, y = self.x[i], self.y[i]
+        x, y = at.x[i], at.y[i]
         return i[(x >= xs.start) & (x < xs.stop) & (y >= ys.start) & (y < ys.stop)]
 
 

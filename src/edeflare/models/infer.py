@@ -392,11 +392,10 @@ class ModelDeflarer:
             )
             for (start, events), lg in zip(batch, logits, strict=True)
         ]
-        if self.ghost_shift:
-            for (_, events), v in zip(batch, out, strict=True):
+        for (_, events), v in zip(batch, out, strict=True):
+            if self.ghost_shift:
                 v -= self.ghost_shift * in_ghost_prior(events, sensor_size, w)
-        if self.halo_shift:
-            for (_, events), v in zip(batch, out, strict=True):
+            if self.halo_shift:
                 v -= self.halo_shift * in_halo_prior(events, sensor_size, w)
         return out
 
