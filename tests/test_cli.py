@@ -243,11 +243,15 @@ def test_view_and_convert_times_are_relative_to_the_recording(tmp_path, capsys, 
     png = tmp_path / "v.png"
     assert main(["view", str(path), "-o", str(png), "--start-ms", "40", "--count", "2"]) == 0
     captured = capsys.readouterr()
-    assert "warning" not in captured.err and "wrote 2 window(s)" in captured.out
+    assert "warning" not in captured.err and "wrote 2 window(s) of 20 ms (40-80 ms)" in captured.out
     with Image.open(png) as im:
         assert np.asarray(im.convert("RGB")).std() > 0  # events drawn
     assert main(["view", str(path), "-o", str(png), "--start-ms", "5000"]) == 0
     assert "the window 5000-5020 ms lies outside the recording" in capsys.readouterr().err
+    # by default the first window starts at the first event (11.2 s is not a multiple
+    # of 30 ms, so an aligned window would start 10 ms before it)
+    assert main(["view", str(path), "-o", str(png), "--window-ms", "30"]) == 0
+    assert "wrote 1 window(s) of 30 ms (0-30 ms)" in capsys.readouterr().out
 
 
 def test_view_and_convert_help_say_times_are_relative(capsys):

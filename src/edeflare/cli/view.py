@@ -27,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "--start-ms",
         type=float,
         help="start of the first window, in ms after the recording's first event "
-        "(not absolute time); default: the first event's aligned window",
+        "(not absolute time); default: 0, the first event",
     )
     p.add_argument("--window-ms", type=float, default=20.0, help="window length (ms)")
     p.add_argument("--count", type=int, default=1, help="number of consecutive windows")
@@ -54,8 +54,10 @@ def run(args: argparse.Namespace) -> int:
     origin = src.first_time_us()
     if origin is None:
         raise EdeflareError(f"{args.file}: no events to show")
-    start = None if args.start_ms is None else origin + ms_to_us(args.start_ms)
-    end = None if start is None else start + window * args.count
+    # Windows start at the first event by default (not at the multiple of the window
+    # below it), so the captions count from 0 ms as the help says.
+    start = origin + (0 if args.start_ms is None else ms_to_us(args.start_ms))
+    end = start + window * args.count
     frames, labels, counts = [], [], []
     with tqdm(total=args.count, unit="frame", disable=None, leave=False) as bar:
         for w_start, events in src.windows(window, start_us=start, end_us=end):
@@ -67,12 +69,13 @@ def run(args: argparse.Namespace) -> int:
                 break
     if not frames:
         raise EdeflareError(f"{args.file}: no events to show")
-    if start is not None and not any(f_events for f_events in counts):
+    if not any(f_events for f_events in counts):
         warn_outside_span(src, origin, start, start + window * len(frames))
     if out.suffix.lower() in (".gif", ".mp4"):
         animated = [grid([f], captions=[c]) for f, c in zip(frames, labels, strict=True)]
         save_animation(out, animated, fps=args.fps)
     else:
         save_image(out, grid(frames, captions=labels, ncols=min(len(frames), 4)))
-    print(f"wrote {len(frames)} window(s) of {args.window_ms:g} ms to {out}")
+    span = f"{(start - origin) / 1000:g}-{(start - origin + window * len(frames)) / 1000:g} ms"
+    print(f"wrote {len(frames)} window(s) of {args.window_ms:g} ms ({span}) to {out}")
     return 0
