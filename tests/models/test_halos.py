@@ -10,7 +10,7 @@ from edeflare.deflare import create_method
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
 from edeflare.models import create_model
-from edeflare.models.ghosts import in_ghost_prior
+from edeflare.models.ghosts import in_ghost_prior, light_cells
 from edeflare.models.halos import (
     HALO_EXTENT,
     MIN_LIGHT_RADIUS,
@@ -128,6 +128,24 @@ def test_a_prior_shift_lowers_exactly_the_logits_inside_the_prior(name, prior, l
     assert np.isin(kept_shifted, kept).all() and len(kept_shifted) < len(kept)
     lost = kept[~np.isin(kept, kept_shifted)]
     assert prior(ev, size, 20_000)[np.isin(ev, lost)].all()
+
+
+def test_both_priors_add_up_and_share_one_count_of_the_light_cells(rng):
+    size = (64, 64)
+    ev = merge_events(_block(0, 0, 8, 6), random_events(rng, 600, size, t0=0, span_us=20_000))
+    lights = light_cells(ev, size, 20_000)
+    halo, ghost = in_halo_prior(ev, size, 20_000), in_ghost_prior(ev, size, 20_000)
+    assert halo.any() and ghost.any() and (halo != ghost).any()
+    np.testing.assert_array_equal(in_halo_prior(ev, size, 20_000, lights=lights), halo)
+    np.testing.assert_array_equal(in_ghost_prior(ev, size, 20_000, lights=lights), ghost)
+    weights = bundled_weights()
+    plain = ModelDeflarer(weights, halo_shift=0.0, ghost_shift=0.0)
+    both = ModelDeflarer(weights, halo_shift=2.5, ghost_shift=1.5)
+    np.testing.assert_allclose(
+        plain.window_logits([(0, ev)], size)[0] - both.window_logits([(0, ev)], size)[0],
+        2.5 * halo + 1.5 * ghost,
+        atol=1e-5,
+    )
 
 
 def test_without_a_light_the_shift_changes_nothing(rng):

@@ -86,6 +86,7 @@ def ghost_cells(
     cell: int = 8,
     widen: int = 2,
     factors: tuple[float, ...] = GHOST_FACTORS,
+    lights: np.ndarray | None = None,
 ) -> np.ndarray:
     """The cells (``cell`` x ``cell`` pixels) of a window where a ghost of its lights can be.
 
@@ -103,6 +104,9 @@ def ghost_cells(
         source, and the factors are a sampling).
     factors : tuple of float
         Ghost position factors.
+    lights : numpy.ndarray, optional
+        The window's :func:`light_cells` when already counted (the halo prior
+        counts them too); computed here otherwise.
 
     Returns
     -------
@@ -125,7 +129,8 @@ def ghost_cells(
     width, height = check_sensor_size(sensor_size)
     if widen < 0:
         raise ValueError(f"widen must be >= 0, got {widen}")
-    lights = light_cells(events, sensor_size, window_us, cell=cell)
+    if lights is None:
+        lights = light_cells(events, sensor_size, window_us, cell=cell)
     h, w = lights.shape
     prior = np.zeros((h, w), dtype=bool)
     if not lights.any():
@@ -151,9 +156,15 @@ def ghost_cells(
 
 
 def in_ghost_prior(
-    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    *,
+    cell: int = 8,
+    lights: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Whether each event of a window lies in its :func:`ghost_cells`.
+    """Whether each event of a window lies in its :func:`ghost_cells` (``lights``: the
+    window's :func:`light_cells`, when already counted).
 
     Examples
     --------
@@ -165,7 +176,7 @@ def in_ghost_prior(
     >>> in_ghost_prior(np.concatenate([ev, far]), (64, 64), 20_000)[-2:].tolist()
     [True, False]
     """
-    cells = ghost_cells(events, sensor_size, window_us, cell=cell)
+    cells = ghost_cells(events, sensor_size, window_us, cell=cell, lights=lights)
     return cells[events["y"] // cell, events["x"] // cell]
 
 

@@ -100,13 +100,18 @@ class _CellIndex:
 
 
 def _lights(
-    events: np.ndarray, sensor_size: SensorSize, window_us: int, cell: int
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    cell: int,
+    lights: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[tuple[slice, slice, np.ndarray, float]], _Coords | None]:
     """The light cells; per light its box (pixel slices), its pixels in the box and its
     radius; the events' coordinates (None without a light). Only the lights'
     neighbourhoods are looked at, never the whole frame."""
     width, height = check_sensor_size(sensor_size)
-    lights = light_cells(events, sensor_size, window_us, cell=cell)
+    if lights is None:
+        lights = light_cells(events, sensor_size, window_us, cell=cell)
     found: list[tuple[slice, slice, np.ndarray, float]] = []
     if not lights.any():
         return lights, found, None
@@ -254,9 +259,15 @@ def halo_pixels(
 
 
 def in_halo_prior(
-    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    *,
+    cell: int = 8,
+    lights: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Whether each event of a window lies in its :func:`halo_pixels`.
+    """Whether each event of a window lies in its :func:`halo_pixels` (``lights``: the
+    window's :func:`~edeflare.models.ghosts.light_cells`, when already counted).
 
     Examples
     --------
@@ -270,7 +281,7 @@ def in_halo_prior(
     [False, True, False]
     """
     width, height = check_sensor_size(sensor_size)
-    lights, found, at = _lights(events, sensor_size, window_us, cell)
+    lights, found, at = _lights(events, sensor_size, window_us, cell, lights)
     inside = np.zeros(events.size, dtype=bool)
     if not found or at is None:
         return inside

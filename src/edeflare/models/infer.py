@@ -37,7 +37,7 @@ from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
-from .ghosts import check_ghost_shift, in_ghost_prior
+from .ghosts import check_ghost_shift, in_ghost_prior, light_cells
 from .halos import check_halo_shift, in_halo_prior
 from .weights import ModelCard, load_model
 
@@ -393,10 +393,13 @@ class ModelDeflarer:
             for (start, events), lg in zip(batch, logits, strict=True)
         ]
         for (_, events), v in zip(batch, out, strict=True):
+            if not (self.ghost_shift or self.halo_shift):
+                continue
+            lights = light_cells(events, sensor_size, w)  # counted once for both priors
             if self.ghost_shift:
-                v -= self.ghost_shift * in_ghost_prior(events, sensor_size, w)
+                v -= self.ghost_shift * in_ghost_prior(events, sensor_size, w, lights=lights)
             if self.halo_shift:
-                v -= self.halo_shift * in_halo_prior(events, sensor_size, w)
+                v -= self.halo_shift * in_halo_prior(events, sensor_size, w, lights=lights)
         return out
 
     def _run_mask(
