@@ -131,6 +131,9 @@ def test_keep_loss_needs_a_mask_preset_and_losses_are_checked(dataset, tmp_path)
     bad = _config(preset="mask.lite", loss="keep", keep_weight=1.0)
     with pytest.raises(EdeflareError, match=r"keep_weight must be in \(0, 1\), got 1.0"):
         train(bad, _paths(dataset, "train"), tmp_path / "c", progress=False)
+    bad = _config(preset="mask.lite", loss="keep", keep_cells="pixel")
+    with pytest.raises(EdeflareError, match="keep_cells must be 'bin' or 'window', got 'pixel'"):
+        train(bad, _paths(dataset, "train"), tmp_path / "d", progress=False)
 
 
 def test_init_starts_a_larger_preset_from_smaller_weights(dataset, tmp_path):

@@ -89,6 +89,7 @@ class TrainConfig:
     data: str = ""  # description of the training data, for the model card
     loss: str = "mse"  # "mse" of the voxel grids, or "keep": per-event decisions (mask presets)
     keep_weight: float = 0.5  # loss "keep": the share of the loss on the events to keep
+    keep_cells: str = "bin"  # loss "keep": match counts per bin, or per pixel over the window
     init: str | None = None  # weights to start from (a path or a bundled name): fine-tuning
     freeze_init: bool = False  # with init: train only the layers the preset adds to it
     time_limit_min: float | None = None  # stop (checkpointed, resumable) after this many minutes
@@ -165,15 +166,18 @@ class _Dist:
 class _WithLoss(nn.Module):
     """A model and its training loss as one module: ``forward(x, y)`` is the loss."""
 
-    def __init__(self, model: nn.Module, loss: str, keep_weight: float = 0.5) -> None:
+    def __init__(
+        self, model: nn.Module, loss: str, keep_weight: float = 0.5, keep_cells: str = "bin"
+    ) -> None:
         super().__init__()
         self.model = model
         self.loss = loss
         self.keep_weight = keep_weight
+        self.keep_cells = keep_cells
 
     def forward(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
         if self.loss == "keep":
-            return keep_loss(self.model, x, y, self.keep_weight)  # type: ignore[arg-type]
+            return keep_loss(self.model, x, y, self.keep_weight, self.keep_cells)  # type: ignore[arg-type]
         return nn.functional.mse_loss(self.model(x), y)
 
 
@@ -390,6 +394,8 @@ def train(
         raise EdeflareError(f"unknown loss {config.loss!r}; known: {list(LOSSES)}")
     if not 0.0 < config.keep_weight < 1.0:
         raise EdeflareError(f"keep_weight must be in (0, 1), got {config.keep_weight}")
+    if config.keep_cells not in ("bin", "window"):
+        raise EdeflareError(f"keep_cells must be 'bin' or 'window', got {config.keep_cells!r}")
     if config.loss == "keep" and not isinstance(create_model(config.preset), FlareMaskNet):
         raise EdeflareError(f"loss 'keep' trains mask presets (mask.*), not {config.preset!r}")
     env = _dist_env()
@@ -474,7 +480,7 @@ def train(
         for name in ("train_log.csv", "val_log.csv"):
             _truncate_csv(out / name, start)
     # The loss is computed inside the module that DDP wraps, so that its gradients are synced.
-    net: nn.Module = _WithLoss(model, config.loss, config.keep_weight)
+    net: nn.Module = _WithLoss(model, config.loss, config.keep_weight, config.keep_cells)
     if env.world > 1:
         net = DistributedDataParallel(
             net, device_ids=[device.index] if device.type == "cuda" else None

@@ -147,3 +147,22 @@ def test_events_outside_the_window_or_the_sensor_are_refused_not_read_out_of_bou
     with pytest.raises(ValueError, match="16x16 sensor"):
         event_keep_mask(lg, off, 0, 20_000, 8, pixel_params=params, sensor_size=(16, 16))
     assert event_keep_mask(lg, off, 0, 20_000, 8).shape == (2,)  # no frame: clipped sampling
+
+
+def test_keep_loss_window_cells_keep_an_edge_the_flare_shifted_by_a_bin():
+    """Two ON events in each of two bins; the target has all four in the second bin.
+    Per bin, the first bin's two are to drop; per window, all four are to keep. The
+    untrained net's keep probability is 3/4 everywhere."""
+    from edeflare.models.flaremask import keep_loss
+
+    net = FlareMaskNet(bins=2, scale=4, features=(8, 16), groups=4)
+    x = torch.zeros(1, 1, 2, 8, 8)
+    x[0, 0, :, 1, 1] = 2
+    y = torch.zeros_like(x)
+    y[0, 0, 1, 1, 1] = 4
+    per_bin = -(0.5 * np.log(0.75) + 0.5 * np.log(0.25))
+    assert keep_loss(net, x, y).item() == pytest.approx(per_bin, abs=1e-5)
+    per_window = -0.5 * np.log(0.75)  # nothing to drop
+    assert keep_loss(net, x, y, cells="window").item() == pytest.approx(per_window, abs=1e-5)
+    with pytest.raises(ValueError, match="cells must be"):
+        keep_loss(net, x, y, cells="pixel")

@@ -58,6 +58,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "higher drops only where surer)",
     )
     p.add_argument(
+        "--keep-cells",
+        choices=["bin", "window"],
+        help="--loss keep: match the target's event counts per voxel bin, or per pixel and "
+        "polarity over the whole window (lenient to events the flare shifts in time)",
+    )
+    p.add_argument(
         "--crop",
         type=_crop,
         metavar="HxW",

@@ -547,7 +547,11 @@ def event_keep_mask(
 
 
 def keep_loss(
-    net: FlareMaskNet, x: torch.Tensor, y: torch.Tensor, keep_weight: float = 0.5
+    net: FlareMaskNet,
+    x: torch.Tensor,
+    y: torch.Tensor,
+    keep_weight: float = 0.5,
+    cells: str = "bin",
 ) -> torch.Tensor:
     r"""Class-balanced cross-entropy of the per-event keep decisions (training ``loss="keep"``).
 
@@ -563,6 +567,11 @@ def keep_loss(
     event. A ``keep_weight`` above 1/2 makes the mask drop only where it is
     surer (it keeps more of the scene and of the flare).
 
+    With ``cells="window"`` the counts are matched per pixel and polarity over
+    the whole window instead of per bin: ``k = n min(N, Y) / N`` in each bin,
+    with ``N`` and ``Y`` the window's totals. A scene edge that flare shifts by a
+    bin is then kept, not dropped from one bin and missed in the next.
+
     Examples
     --------
     >>> net = FlareMaskNet(bins=2, scale=4, features=(8, 16), groups=4)
@@ -574,9 +583,18 @@ def keep_loss(
     >>> round(keep_loss(net, x, y, keep_weight=0.75).item(), 4)  # -(3 ln(3/4) + ln(1/4)) / 4
     0.5623
     """
+    if cells not in ("bin", "window"):
+        raise ValueError(f"cells must be 'bin' or 'window', got {cells!r}")
     z, g = x[:, 0].float(), y[:, 0].float()
     n = torch.cat([z.clamp(min=0), (-z).clamp(min=0)], 1)
-    k = torch.minimum(torch.cat([g.clamp(min=0), (-g).clamp(min=0)], 1), n)
+    target = torch.cat([g.clamp(min=0), (-g).clamp(min=0)], 1)
+    if cells == "bin":
+        k = torch.minimum(target, n)
+    else:  # (N, 2 bins, H, W) -> per polarity, the window's totals
+        shape = (n.shape[0], 2, n.shape[1] // 2, *n.shape[2:])
+        total = n.reshape(shape).sum(2, keepdim=True)
+        share = torch.minimum(target.reshape(shape).sum(2, keepdim=True), total)
+        k = (n.reshape(shape) * share / total.clamp(min=1e-9)).reshape(n.shape)
     logit = net.pixel_logits(x) + float(np.log(3.0))
     keep_term = (k * F.logsigmoid(logit)).sum() / k.sum().clamp(min=1)
     drop_term = ((n - k) * F.logsigmoid(-logit)).sum() / (n - k).sum().clamp(min=1)
