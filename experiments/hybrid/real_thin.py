@@ -12,22 +12,10 @@ from edeflare.io import read_events
 from edeflare.models.infer import ModelDeflarer, resolve_weights
 
 sys.path.insert(0, str(Path(__file__).parent))
+from thin import WIN_US, thin
+
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
-WIN_US = 20_000
 model = ModelDeflarer(resolve_weights(sys.argv[1]), **dict(kv.split("=") for kv in sys.argv[2:]))
-
-
-def thin(ev, p, w, h):
-    key = (((ev["t"].astype(np.int64) // WIN_US) * h + ev["y"]) * w + ev["x"]) * 2 + ev["p"]
-    order = np.lexsort((ev["t"], -p, key))
-    ks = key[order]
-    first = np.r_[True, ks[1:] != ks[:-1]]
-    gid = np.cumsum(first) - 1
-    rank = np.arange(ks.size) - np.flatnonzero(first)[gid]
-    want = np.rint(np.bincount(gid, weights=p[order]))
-    keep = np.zeros(ev.size, dtype=bool)
-    keep[order] = rank < want[gid]
-    return keep
 
 
 def outputs(events, size):
@@ -40,7 +28,7 @@ def outputs(events, size):
         for (_, ev), v in zip(batch, model.window_logits(batch, size), strict=True):
             p = 1.0 / (1.0 + np.exp(-(v + np.log(3.0))))
             kept["threshold"].append(ev[p > 0.5])
-            kept["thin"].append(ev[thin(ev, p, *size)])
+            kept["thin"].append(ev[thin(ev, p, *size, bin_us=WIN_US)])
     return {k: np.concatenate(v) for k, v in kept.items()}
 
 

@@ -25,31 +25,12 @@ from edeflare.eval.metrics import keep_only_oracle
 from edeflare.events import concat_events, empty_events
 from edeflare.io import open_events
 
+sys.path.insert(0, str(Path(__file__).parent))
+from oracles import cell_keys, count_oracle
+
 split, outdir = Path(sys.argv[1]), Path(sys.argv[2])
 net = sys.argv[3] if len(sys.argv) > 3 else "paper"  # "none": the oracles only
 BIN_US, WIN_US = 2_500, 20_000
-
-
-def cell_keys(ev, w, h, bin_us):
-    b = ev["t"].astype(np.int64) // bin_us
-    return ((b * h + ev["y"]) * w + ev["x"]) * 2 + ev["p"]
-
-
-def count_oracle(inp, gt, w, h):
-    """Keep, in each cell, the input's first min(n_input, n_gt) events: the deleting
-    method that matches the ground truth's counts where it can."""
-    k_in, k_gt = cell_keys(inp, w, h, BIN_US), cell_keys(gt, w, h, BIN_US)
-    order = np.argsort(k_in, kind="stable")
-    ks = k_in[order]
-    first = np.r_[True, ks[1:] != ks[:-1]]
-    group_start = np.maximum.accumulate(np.where(first, np.arange(ks.size), 0))
-    rank = np.arange(ks.size) - group_start
-    uniq, n_gt = np.unique(k_gt, return_counts=True)
-    i = np.minimum(np.searchsorted(uniq, ks), max(uniq.size - 1, 0))
-    allowed = np.where(uniq.size and (uniq[i] == ks), n_gt[i] if uniq.size else 0, 0)
-    keep = np.zeros(inp.size, dtype=bool)
-    keep[order] = rank < allowed
-    return inp[keep]
 
 
 def pick(ev, mask):
@@ -93,7 +74,7 @@ for path in sorted(split.glob("*.h5")):
         f"{net}-cut": pick(paper, cut),
         "cut+restore": merge(night, pick(paper, cut & new_cell)),
         "keep-only oracle": inp[keep_only_oracle(inp, gt, size, max_distance=2.0)],
-        "count oracle": count_oracle(inp, gt, w, h),
+        "count oracle": count_oracle(inp, gt, w, h, BIN_US),
     }
     firsts = [int(e["t"][0]) for e in (inp, gt) if e.size]
     start = min(firsts) // WIN_US * WIN_US
