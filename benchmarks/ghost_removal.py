@@ -55,6 +55,19 @@ MIN_EVENTS = 100
 """A sequence counts for a kind's mean where it holds at least this many of its events."""
 
 
+def labelled_events(seq: Path) -> tuple[np.ndarray, tuple[int, int], np.ndarray, np.ndarray]:
+    """A sequence's input events, sensor size, and per event whether it is to keep (in
+    ``gt``) and whether it lies in a ghost's disc (from the script's ghosts and the
+    source's track)."""
+    inp, size = read_dsec(seq, "input")
+    gt, _ = read_dsec(seq, "gt")
+    light, _ = read_dsec(seq, "light")
+    with h5py.File(seq) as f:
+        ghosts = [GhostSpec(**g) for g in json.loads(f.attrs["script"])["ghosts"]]
+    keep = np.isin(event_keys(inp, size), event_keys(gt, size))
+    return inp, size, keep, in_ghosts(inp, source_track(light), ghosts, size)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", help="weights for the model row (default: the bundled)")
@@ -77,14 +90,8 @@ def main() -> None:
     }
     counts = {"ghost": 0, "other": 0, "keep": 0}
     for seq in list_sequences(folder / "test"):
-        inp, size = read_dsec(seq, "input")
-        gt, _ = read_dsec(seq, "gt")
-        light, _ = read_dsec(seq, "light")
-        with h5py.File(seq) as f:
-            ghosts = [GhostSpec(**g) for g in json.loads(f.attrs["script"])["ghosts"]]
+        inp, size, keep, ghost = labelled_events(seq)
         keys = event_keys(inp, size)
-        keep = np.isin(keys, event_keys(gt, size))
-        ghost = in_ghosts(inp, source_track(light), ghosts, size)
         kinds = {"ghost": ~keep & ghost, "other": ~keep & ~ghost, "keep": keep}
         for kind, sel in kinds.items():
             counts[kind] += int(sel.sum())

@@ -9,19 +9,18 @@ the scene events kept among those the halo prior covers (what the prior costs), 
 mean over the sequences holding at least 100 events of the kind; the harmonic mean of
 the first three."""
 
-import json
 import sys
+from pathlib import Path
 
-import h5py
 import numpy as np
 
 from edeflare.deflare import create_method
 from edeflare.events import event_keys
-from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
 from edeflare.models.halos import in_halo_prior
-from edeflare.sim.flare import GhostSpec
-from edeflare.sim.sensing import in_ghosts, source_track
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from ghost_removal import labelled_events
 
 SET = "benchmarks/.data/eflare-night-sparse-640x480/test"
 W = 20_000
@@ -44,14 +43,8 @@ if __name__ == "__main__":
     kinds = ("ghost", "other", "keep", "keep in halo")
     res = [{k: [] for k in kinds} for _ in sets]
     for seq in list_sequences(SET):
-        inp, size = read_dsec(seq, "input")
-        gt, _ = read_dsec(seq, "gt")
-        light, _ = read_dsec(seq, "light")
-        with h5py.File(seq) as f:
-            ghosts = [GhostSpec(**g) for g in json.loads(f.attrs["script"])["ghosts"]]
+        inp, size, keep, ghost = labelled_events(seq)
         keys = event_keys(inp, size)
-        keep = np.isin(keys, event_keys(gt, size))
-        ghost = in_ghosts(inp, source_track(light), ghosts, size)
         sel = {"ghost": ~keep & ghost, "other": ~keep & ~ghost, "keep": keep,
                "keep in halo": keep & halo_prior(inp, size)}  # fmt: skip
         for m, r in zip(methods, res, strict=True):
