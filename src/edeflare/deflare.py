@@ -507,8 +507,9 @@ class ModelParams:
         default=None,
         metadata=cli_option(
             "--ghost-shift",
-            "mask models: lower the keep logit by this much where a reflective ghost of the "
-            "window's lights can be (the lights reflected through the sensor's centre; 0: off)",
+            "mask models: lower the keep logit by this much for the sparse events where a "
+            "reflective ghost of the window's lights can be (the lights reflected through the "
+            "sensor's centre; 0: off)",
             metavar="LOGIT",
             type=float,
             default_text="the model card's",

@@ -21,19 +21,19 @@ def test_the_night_card_says_what_it_is_and_night_is_the_default():
     assert "--loss keep" in card.command and "--init night-7e5b73e.safetensors" in card.command
     assert "--polarity-flip" in card.command and "--polarity-flip" in card.data
     assert "--recipe eflare-night" in card.data and "gen_day.py" in card.data
-    assert card.metrics["score_davis_lamps_combined"] == 0.793
-    assert card.halo_shift == 1.0 and card.ghost_shift == 0.0  # the halo prior (halos.py)
+    assert card.metrics["score_davis_lamps_combined"] == 0.789
+    assert card.halo_shift == 1.0 and card.ghost_shift == 1.0  # the priors (halos.py, ghosts.py)
     assert read_card(bundled_weights("eflare")).preset == "unet2d.lite"  # the previous default
 
 
 @pytest.mark.parametrize(
     ("name", "min_removed", "min_light", "min_combined"),
     [
-        # docs (mean of 4 window phases): 94.3 %, 96.7 %, 0.955 (worst phase 0.949);
+        # docs (mean of 4 window phases): 95.2 %, 96.7 %, 0.959 (worst phase 0.953);
         # dv-bafilter 0.949 (it keeps 99.8 % of the blob)
         ("prophesee_gen3_rotating_light.raw", 0.93, 0.95, 0.95),
-        # 82.2 %, 97.0 %, 0.793 (worst phase 0.784); dv-fastdecay 0.693 at every phase.
-        # Issue 13's targets: 80 % removed, 90 % kept (without the halo prior: 73.7 %)
+        # 83.6 %, 97.0 %, 0.789 (worst phase 0.779); dv-fastdecay 0.693 at every phase.
+        # Issue 13's targets: 80 % removed, 90 % kept (without the priors: 73.7 %)
         ("davis346_flicker_lamps.aedat4", 0.80, 0.95, 0.78),
     ],
 )
@@ -50,8 +50,8 @@ def test_the_default_removes_flare_around_real_lights_and_keeps_them(
     default, fastdecay, bafilter = report.rows
     assert default.flare_removed >= min_removed and default.light_kept >= min_light
     assert default.combined >= min_combined
-    assert default.combined_worst > fastdecay.combined  # at every phase
-    assert default.combined > bafilter.combined  # Gen3: 0.955 against 0.949 (phase mean)
+    # above both filters at every phase (Gen3: 0.953 against dv-bafilter's 0.949)
+    assert default.combined_worst > max(fastdecay.combined, bafilter.combined)
 
 
 def test_the_previous_default_erodes_the_light():
@@ -71,7 +71,7 @@ def test_the_previous_default_erodes_the_light():
     [
         # docs: 63.8 % (the previous default 77.8 %: the price of the polarity-free training)
         ("davis346_street_cars.aedat4", 0.62),
-        ("davis346_lowlight_cradle.aedat4", 0.85),  # docs: 86.2 % (87.2 % without the halo prior)
+        ("davis346_lowlight_cradle.aedat4", 0.85),  # docs: 86.1 % (87.2 % without the priors)
         ("prophesee_gen41_street.raw", 0.36),  # docs: 37.4 %, dense daytime texture
     ],
 )

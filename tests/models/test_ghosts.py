@@ -50,6 +50,27 @@ def test_in_ghost_prior_reads_each_events_cell():
     assert inside[np.isin(ev["x"], [60, 61])].all() and not inside[ev["x"] == 58].any()
 
 
+def test_the_prior_covers_only_sparse_events_in_its_cells():
+    # the corner light's k = -1 ghost cell is (7, 7): pixels 56-63. A lone event and a
+    # line of three there are sparse (at most 4 events in each 3x3 neighbourhood: the
+    # line's middle pixel sees 3); a solid 3x3 block is not (its centre sees 9, its
+    # corners 4, its edges 6)
+    lone = make_events([1], [62], [62], [1])
+    line = make_events([2, 3, 4], [56, 57, 58], [57, 57, 57], [1, 1, 1])
+    yy, xx = np.mgrid[59:62, 56:59]
+    block = make_events(np.arange(5, 14), xx.ravel(), yy.ravel(), np.ones(9))
+    ev = merge_events(_light(0, 0), lone, line, block)
+    in_cells = in_ghost_prior(ev, (64, 64), 20_000, max_neighbours=None)
+    sparse = in_ghost_prior(ev, (64, 64), 20_000)
+    at = {(int(x), int(y)): bool(v) for x, y, v in zip(ev["x"], ev["y"], sparse, strict=True)}
+    assert in_cells[ev["x"] >= 56].all() and np.array_equal(sparse, in_cells & sparse)
+    assert at[(62, 62)] and at[(56, 57)] and at[(57, 57)] and at[(58, 57)]
+    assert at[(56, 59)] and at[(58, 61)]  # the block's corners: 4 each
+    assert not at[(57, 60)] and not at[(57, 59)] and not at[(56, 60)]  # centre 9, edges 6
+    # a looser gate: only the block's centre (9) is left out of the 13 events there
+    assert in_ghost_prior(ev, (64, 64), 20_000, max_neighbours=8)[ev["x"] >= 56].sum() == 12
+
+
 @pytest.mark.parametrize("kw, what", [({"cell": 0}, "cell must be"), ({"widen": -1}, "widen")])
 def test_bad_prior_settings_are_refused(kw, what):
     with pytest.raises(ValueError, match=what):
