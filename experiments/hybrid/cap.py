@@ -10,7 +10,9 @@ import numpy as np
 
 from edeflare.eval.evaluate import evaluate_events
 from edeflare.io import open_events
-from edeflare.models.halos import in_halo_prior
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "halo-prior"))
+from sim_check import halo_prior as in_band
 
 WIN_US = 20_000
 
@@ -25,15 +27,6 @@ def rank_in_pixel(ev: np.ndarray, w: int, h: int) -> np.ndarray:
     rank = np.empty(ev.size, dtype=np.int64)
     rank[order] = np.arange(ks.size) - np.flatnonzero(first)[gid]
     return rank
-
-
-def in_band(ev: np.ndarray, size) -> np.ndarray:
-    out = np.zeros(ev.size, dtype=bool)
-    win = ev["t"] // WIN_US
-    edges = np.flatnonzero(np.diff(win)) + 1
-    for a, b in zip(np.r_[0, edges], np.r_[edges, ev.size], strict=True):
-        out[a:b] = in_halo_prior(ev[a:b], size, WIN_US)
-    return out
 
 
 if __name__ == "__main__":
