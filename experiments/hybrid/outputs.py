@@ -16,7 +16,7 @@ from edeflare.deflare import create_method, deflare
 from edeflare.io import open_events
 
 split, outdir, name = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
-params = dict(kv.split("=", 1) for kv in sys.argv[4:])
+params = {k: float(v) if v.replace(".", "", 1).isdigit() else v for k, v in (kv.split("=", 1) for kv in sys.argv[4:])}
 outdir.mkdir(parents=True, exist_ok=True)
 if name in ("night", "paper", "eflare"):
     method = create_method("model", weights=name, batch_windows=1, **params)

@@ -526,6 +526,17 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    streak_shift: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--streak-shift",
+            "mask models: lower the keep logit by this much on the diffraction spikes of the "
+            "window's lights (saturated radial runs in opposite pairs; 0: off)",
+            metavar="LOGIT",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     runtime: str = dataclasses.field(
         default="auto",
         metadata=cli_option(
@@ -708,10 +719,12 @@ class ModelMethod(Method):
         phase_shift_us: int | None = None,
         ghost_shift: float | None = None,
         halo_shift: float | None = None,
+        streak_shift: float | None = None,
     ) -> None:
         from .models.ghosts import check_ghost_shift
         from .models.halos import check_halo_shift
         from .models.infer import DECODERS, RUNTIMES, resolve_weights
+        from .models.streaks import check_streak_shift
         from .models.weights import read_card
 
         if decoder not in DECODERS:
@@ -724,6 +737,8 @@ class ModelMethod(Method):
             ghost_shift = check_ghost_shift(ghost_shift)
         if halo_shift is not None:
             halo_shift = check_halo_shift(halo_shift)
+        if streak_shift is not None:
+            streak_shift = check_streak_shift(streak_shift)
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -760,6 +775,7 @@ class ModelMethod(Method):
             phase_shift_us=int(phase_shift_us),
             ghost_shift=ghost_shift,
             halo_shift=halo_shift,
+            streak_shift=streak_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
         # shared by every stream of this method: a benchmark opens one per sequence.
@@ -781,6 +797,7 @@ class ModelMethod(Method):
                 keep_threshold=p["keep_threshold"],
                 ghost_shift=p["ghost_shift"],
                 halo_shift=p["halo_shift"],
+                streak_shift=p["streak_shift"],
             )
         deflarer = self._deflarers[seed]
         size = check_sensor_size(sensor_size)

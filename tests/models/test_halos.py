@@ -154,14 +154,14 @@ def test_without_a_light_the_shift_changes_nothing(rng):
     np.testing.assert_array_equal(create_method("model", halo_shift=5.0)(ev, SIZE, rng=0), plain)
 
 
-@pytest.mark.parametrize("name", ["halo_shift", "ghost_shift"])
+@pytest.mark.parametrize("name", ["halo_shift", "ghost_shift", "streak_shift"])
 @pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), True, "2"])
 def test_a_bad_prior_shift_is_refused(name, bad):
     with pytest.raises(ParameterError, match=f"{name} must be a finite number >= 0"):
         create_method("model", **{name: bad})
 
 
-@pytest.mark.parametrize("name", ["halo_shift", "ghost_shift"])
+@pytest.mark.parametrize("name", ["halo_shift", "ghost_shift", "streak_shift"])
 def test_a_prior_shift_needs_a_mask_model_and_defaults_to_the_cards(name, tmp_path):
     path = tmp_path / "v.safetensors"
     save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))

@@ -76,7 +76,10 @@ def _card(path: Path) -> int:
     print(f"preset      {card.preset} ({card.bins} bins, {card.window_us / 1000:g} ms windows)")
     if card.preset.startswith("mask."):
         print(f"keep        probability > {card.keep_threshold:g}")
-        print(f"priors      halo_shift {card.halo_shift:g}, ghost_shift {card.ghost_shift:g}")
+        print(
+            f"priors      halo_shift {card.halo_shift:g}, ghost_shift {card.ghost_shift:g}, "
+            f"streak_shift {card.streak_shift:g}"
+        )
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")
     for name in ("data", "command", "notes"):

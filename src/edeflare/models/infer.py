@@ -39,6 +39,7 @@ from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
 from .ghosts import check_ghost_shift, in_ghost_prior, light_cells
 from .halos import check_halo_shift, in_halo_prior
+from .streaks import check_streak_shift, in_streak_prior
 from .weights import ModelCard, load_model
 
 __all__ = [
@@ -176,6 +177,11 @@ class ModelDeflarer:
         inside its window's halo prior (:mod:`edeflare.models.halos`: from just
         outside each light out to six of its radii). Default: the model card's (0,
         off, unless the card says otherwise).
+    streak_shift : float, optional
+        Mask models: how much lower (in logit units) the keep logit of an event is
+        on a diffraction spike of its window's lights (:mod:`edeflare.models.streaks`:
+        saturated radial runs in opposite pairs). Default: the model card's (0, off,
+        unless the card says otherwise).
 
     Attributes
     ----------
@@ -200,6 +206,7 @@ class ModelDeflarer:
         keep_threshold: float | None = None,
         ghost_shift: float | None = None,
         halo_shift: float | None = None,
+        streak_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -246,7 +253,9 @@ class ModelDeflarer:
         self.ghost_shift = check_ghost_shift(shift)
         shift = card.halo_shift if halo_shift is None else halo_shift
         self.halo_shift = check_halo_shift(shift)
-        for name in ("ghost_shift", "halo_shift"):
+        shift = card.streak_shift if streak_shift is None else streak_shift
+        self.streak_shift = check_streak_shift(shift)
+        for name in ("ghost_shift", "halo_shift", "streak_shift"):
             if getattr(self, name) and not isinstance(model, FlareMaskNet):
                 raise EdeflareError(
                     f"{weights}: {name} needs a mask model, not a {card.preset} (voxel-to-voxel)"
@@ -393,13 +402,15 @@ class ModelDeflarer:
             for (start, events), lg in zip(batch, logits, strict=True)
         ]
         for (_, events), v in zip(batch, out, strict=True):
-            if not (self.ghost_shift or self.halo_shift):
+            if not (self.ghost_shift or self.halo_shift or self.streak_shift):
                 continue
-            lights = light_cells(events, sensor_size, w)  # counted once for both priors
+            lights = light_cells(events, sensor_size, w)  # counted once for all priors
             if self.ghost_shift:
                 v -= self.ghost_shift * in_ghost_prior(events, sensor_size, w, lights=lights)
             if self.halo_shift:
                 v -= self.halo_shift * in_halo_prior(events, sensor_size, w, lights=lights)
+            if self.streak_shift:
+                v -= self.streak_shift * in_streak_prior(events, sensor_size, w, lights=lights)
         return out
 
     def _run_mask(

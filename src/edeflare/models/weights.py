@@ -67,6 +67,7 @@ class ModelCard:
     keep_threshold: float = 0.5  # mask models: keep an event above this keep probability
     ghost_shift: float = 0.0  # mask models: keep logit lowered in the ghost prior (ghosts.py)
     halo_shift: float = 0.0  # mask models: keep logit lowered in the halo prior (halos.py)
+    streak_shift: float = 0.0  # mask models: keep logit lowered on diffraction spikes (streaks.py)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""

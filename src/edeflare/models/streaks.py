@@ -1,0 +1,211 @@
+r"""Where a window's diffraction spikes are: a parameter-free prior from the lights.
+
+A lens's aperture blades diffract a bright point into a star: thin straight spikes
+through the source, in pairs opposite each other (an aperture of ``n`` blades gives
+``n`` spikes for even ``n`` and ``2n`` for odd ``n``; each spike's partner is at
+180 degrees). Where the source is bright enough the spikes saturate: solid radial
+runs of pixels that fire again and again in a window, tens of source radii long.
+A mask model trained on sparse scattered light keeps them, because dense and
+connected is what a scene edge looks like to a cell.
+
+This prior finds them from the geometry alone. Around each light of the window (the
+test of :func:`~edeflare.models.halos.light_pixels`: its centre, the farthest of its
+pixels from the centre, its radius ``R``) the events out to :data:`STREAK_EXTENT`
+radii are binned by angle (:data:`ANGLE_BINS` around) and by distance (rings of
+``RADIAL_BIN_PX``), starting ``SKIP_RADII`` radii beyond the light's edge (the
+light's rim and its near halo belong to the other priors). A bin is *filled* where at
+least :data:`FILL_SHARE` of its area is saturated pixels (:data:`MIN_PIXEL_EVENTS`
+events or more). An angle's *run* is how far its filled bins go out from the start,
+across gaps of at most ``MAX_GAP_BINS`` rings. An angle is a spike where
+
+- its run is at least ``max(MIN_LENGTH_RADII R, MIN_LENGTH_PX)`` plus
+  ``FLANK_FACTOR`` times the median run on its busier flank (the angles
+  ``FLANK_GAP_BINS`` to ``LOCAL_HALF_BINS`` away on one side): a spike is narrow,
+  and a dense object beside the light (the next ball of a Newton's cradle) or a
+  dense scene around it has long runs at the neighbouring angles too;
+- the opposite angle (within ``PAIR_TOLERANCE_BINS`` bins) is a spike too, unless
+  the sensor's border cuts the opposite direction off before a spike could be seen.
+
+The prior is the events of each spike angle up to the end of its run.
+:class:`~edeflare.models.infer.ModelDeflarer` lowers their keep logit by the card's
+``streak_shift``. The measurements behind the constants: ``experiments/streaks/README.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..events import SensorSize, check_sensor_size
+from .ghosts import check_logit_shift
+from .halos import _CellIndex, _lights
+
+__all__ = [
+    "ANGLE_BINS",
+    "FILL_SHARE",
+    "MIN_PIXEL_EVENTS",
+    "STREAK_EXTENT",
+    "check_streak_shift",
+    "in_streak_prior",
+]
+
+STREAK_EXTENT = 25.0
+"""How far out spikes are looked for, in source radii from the source's centre."""
+
+ANGLE_BINS = 240
+"""Angle bins around a light (1.5 degrees each: 5 px wide at 200 px out)."""
+
+MIN_PIXEL_EVENTS = 2
+"""Events in the window that make a pixel saturated: spikes fire their pixels again and
+again; the single scattered events along real streaks are the network's and the halo
+prior's to judge."""
+
+FILL_SHARE = 0.3
+"""The share of a bin's area that saturated pixels must cover for it to be filled. A
+share, not a count: rings far from the light have large bins, and a dense scene would
+fill a count there at any angle."""
+
+RADIAL_BIN_PX = 4.0
+SKIP_RADII = 2.0
+MIN_LENGTH_RADII = 4.0
+MIN_LENGTH_PX = 32.0
+MAX_GAP_BINS = 2
+LOCAL_HALF_BINS = 15
+FLANK_GAP_BINS = 3
+FLANK_FACTOR = 2.0
+PAIR_TOLERANCE_BINS = 2
+
+
+def _runs(filled: np.ndarray, max_gap: int) -> np.ndarray:
+    """Per row of ``filled`` (angle, ring), how many rings its run covers: up to and
+    including the last filled ring before the first gap longer than ``max_gap``."""
+    n_rings = filled.shape[1]
+    # a ring starts a break where it and the max_gap rings after it are all empty
+    empty = np.pad(~filled, ((0, 0), (0, max_gap)), constant_values=True)
+    window = np.lib.stride_tricks.sliding_window_view(empty, max_gap + 1, axis=1)
+    breaks = window.all(axis=2)[:, :n_rings]
+    first_break = np.where(breaks.any(axis=1), breaks.argmax(axis=1), n_rings)
+    ring = np.arange(n_rings)
+    before = filled & (ring[None, :] < first_break[:, None])
+    return np.where(before.any(axis=1), n_rings - before[:, ::-1].argmax(axis=1), 0)
+
+
+def _spikes(run: np.ndarray, need: float, room: np.ndarray) -> np.ndarray:
+    """The spike angles among runs ``run`` (rings), ``room``: rings before the border."""
+    h, n = LOCAL_HALF_BINS, run.size
+    ring = np.concatenate([run[-h:], run, run[:h]])
+    # the median run on each flank (the bins FLANK_GAP_BINS to h away on that side): a
+    # spike stands above both; the edge of a wide object has its body on one flank
+    flanks = np.lib.stride_tricks.sliding_window_view(ring, h - FLANK_GAP_BINS + 1)
+    left = np.median(flanks[:n], axis=1)
+    right = np.median(flanks[h + FLANK_GAP_BINS : h + FLANK_GAP_BINS + n], axis=1)
+    spike = run >= need + FLANK_FACTOR * np.maximum(left, right)
+    half = run.size // 2
+    partner = np.zeros_like(spike)
+    for d in range(-PAIR_TOLERANCE_BINS, PAIR_TOLERANCE_BINS + 1):
+        partner |= np.roll(spike, half + d)
+    unseen = np.roll(room < need, half)
+    return spike & (partner | unseen)
+
+
+def in_streak_prior(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    *,
+    cell: int = 8,
+    lights: np.ndarray | None = None,
+) -> np.ndarray:
+    """Whether each event of a window lies on a diffraction spike of one of its lights
+    (``lights``: the window's :func:`~edeflare.models.ghosts.light_cells`, when
+    already counted).
+
+    Examples
+    --------
+    A light of radius 5 with two opposite saturated spikes along its row, 60 px each
+    (4 events per pixel), and an event off the spikes:
+
+    >>> from edeflare.events import make_events
+    >>> yy, xx = np.mgrid[55:65, 95:105]
+    >>> light = np.tile(np.stack([xx.ravel(), yy.ravel()]), 20)
+    >>> sx = np.r_[np.arange(106, 166), np.arange(34, 94)].repeat(4)
+    >>> x = np.r_[light[0], sx, 100]
+    >>> y = np.r_[light[1], np.full(sx.size, 60), 100]
+    >>> ev = make_events(np.arange(x.size), x, y, np.ones(x.size))
+    >>> on = in_streak_prior(ev, (200, 120), 20_000)
+    >>> n = light.shape[1]
+    >>> bool(on[n:-1][np.abs(sx - 100) > 30].all()), bool(on[:n].any()), bool(on[-1])
+    (True, False, False)
+    """
+    width, height = check_sensor_size(sensor_size)
+    lights, found, at = _lights(events, sensor_size, window_us, cell, lights)
+    inside = np.zeros(events.size, dtype=bool)
+    if not found or at is None:
+        return inside
+    boxes = []
+    around = np.zeros_like(lights)
+    for ys, xs, own, radius in found:
+        py, px = np.nonzero(own)
+        cy, cx = py.mean() + ys.start, px.mean() + xs.start
+        edge = float(np.hypot(py + ys.start - cy, px + xs.start - cx).max())
+        reach = STREAK_EXTENT * radius
+        by = slice(max(math.floor(cy - reach), 0), min(math.ceil(cy + reach) + 1, height))
+        bx = slice(max(math.floor(cx - reach), 0), min(math.ceil(cx + reach) + 1, width))
+        around[
+            by.start // cell : (by.stop - 1) // cell + 1,
+            bx.start // cell : (bx.stop - 1) // cell + 1,
+        ] = True
+        boxes.append((by, bx, cy, cx, edge, radius, reach))
+    index = _CellIndex(at, np.flatnonzero(around.ravel()[at.cid]))
+    angle = (np.arange(ANGLE_BINS) + 0.5) / ANGLE_BINS * 2 * math.pi - math.pi
+    cos, sin = np.cos(angle), np.sin(angle)
+    for by, bx, cy, cx, edge, radius, reach in boxes:
+        sel = index.box(by, bx)
+        if sel.size == 0:
+            continue
+        dx, dy = at.x[sel] - cx, at.y[sel] - cy
+        rho = np.hypot(dx, dy)
+        start = edge + 2.0 + SKIP_RADII * radius
+        n_rings = math.ceil((reach - start) / RADIAL_BIN_PX)
+        if n_rings < 2:
+            continue
+        ring = np.floor((rho - start) / RADIAL_BIN_PX).astype(np.int64)
+        ok = (ring >= 0) & (ring < n_rings)
+        sel, ring = sel[ok], ring[ok]
+        theta = np.arctan2(dy[ok], dx[ok])
+        tb = ((theta + math.pi) * (ANGLE_BINS / (2 * math.pi))).astype(np.int64) % ANGLE_BINS
+        # a bin is filled where at least FILL_SHARE of its pixels saturate (fire
+        # MIN_PIXEL_EVENTS or more events); its area is the annulus sector's, and a bin
+        # under a pixel's area (next to a small light) neither fills nor breaks a run
+        key = tb * n_rings + ring
+        pixel, first, n_px = np.unique(
+            (at.y[sel] - by.start) * (bx.stop - bx.start) + (at.x[sel] - bx.start),
+            return_index=True,
+            return_counts=True,
+        )
+        hot = np.bincount(key[first[n_px >= MIN_PIXEL_EVENTS]], minlength=ANGLE_BINS * n_rings)
+        mid = start + RADIAL_BIN_PX * (np.arange(n_rings) + 0.5)
+        area = np.tile(2 * math.pi / ANGLE_BINS * RADIAL_BIN_PX * mid, ANGLE_BINS)
+        filled = (hot >= FILL_SHARE * area) | (area < 1.0)
+        run = _runs(filled.reshape(ANGLE_BINS, n_rings), MAX_GAP_BINS)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tx = np.where(cos > 0, (width - 1 - cx) / cos, np.where(cos < 0, -cx / cos, np.inf))
+            ty = np.where(sin > 0, (height - 1 - cy) / sin, np.where(sin < 0, -cy / sin, np.inf))
+        room = (np.minimum(tx, ty) - start) / RADIAL_BIN_PX
+        need = max(MIN_LENGTH_RADII * radius, MIN_LENGTH_PX) / RADIAL_BIN_PX
+        spike = _spikes(run, need, room)
+        if spike.any():
+            inside[sel[spike[tb] & (ring < run[tb])]] = True
+    return inside
+
+
+def check_streak_shift(value: object) -> float:
+    """A streak shift (keep-logit units) as a float, or a ParameterError: finite, >= 0.
+
+    Examples
+    --------
+    >>> check_streak_shift(8)
+    8.0
+    """
+    return check_logit_shift(value, "streak_shift")

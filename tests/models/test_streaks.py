@@ -1,0 +1,130 @@
+"""The diffraction-spike prior (saturated radial runs in opposite pairs) and its shift."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import random_events
+from edeflare.deflare import create_method
+from edeflare.events import make_events, merge_events
+from edeflare.models.ghosts import light_cells
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.streaks import MIN_PIXEL_EVENTS, _runs, in_streak_prior
+
+SIZE = (200, 120)
+CX, CY = 100, 60  # the light's centre: a 10x10 block, radius 5
+
+
+def _light(cx: int = CX, cy: int = CY) -> np.ndarray:
+    yy, xx = np.mgrid[cy - 5 : cy + 5, cx - 5 : cx + 5]
+    n = 20 * xx.size
+    return make_events(np.arange(n), np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20), np.ones(n))
+
+
+def _ray(direction: int, r0: int, r1: int, per_px: int = 4, cx=CX, cy=CY) -> np.ndarray:
+    """``per_px`` events at each pixel of the light's row from ``r0`` to ``r1`` px out,
+    to the right (``direction`` 1) or the left (-1), within the sensor."""
+    x = cx + direction * np.arange(r0, r1)
+    x = np.repeat(x[(x >= 0) & (x < SIZE[0])], per_px)
+    return make_events(np.arange(x.size) + 5_000, x, np.full(x.size, cy), np.zeros(x.size))
+
+
+def _on(ev: np.ndarray, part: np.ndarray) -> np.ndarray:
+    """Which of ``part``'s events the prior covers, in ``ev`` merged."""
+    inside = in_streak_prior(ev, SIZE, 20_000)
+    return inside[np.isin(ev, part)]
+
+
+def test_runs_bridge_short_gaps_and_stop_at_long_ones():
+    filled = np.array(
+        [
+            [1, 1, 0, 1, 0, 0, 0, 1],  # gap of 1 bridged, gap of 3 stops: 4 rings
+            [1, 0, 0, 1, 1, 0, 0, 0],  # gap of 2 bridged: 5 rings
+            [0, 0, 0, 1, 1, 1, 1, 1],  # starts with a long gap: 0
+            [1, 1, 1, 1, 1, 1, 1, 1],  # to the end: 8
+        ],
+        dtype=bool,
+    )
+    np.testing.assert_array_equal(_runs(filled, 2), [4, 5, 0, 8])
+    np.testing.assert_array_equal(_runs(filled, 0), [2, 1, 0, 8])
+
+
+def test_opposite_saturated_spikes_are_covered_and_the_light_and_the_rest_are_not(rng):
+    spikes = merge_events(_ray(1, 8, 90), _ray(-1, 8, 90))
+    other = random_events(rng, 200, SIZE, t0=0, span_us=20_000)
+    light = _light()
+    ev = merge_events(light, spikes, other)
+    on = in_streak_prior(ev, SIZE, 20_000)
+    # the light's centre is (99.5, 59.5); its farthest pixel 6.4 px from it; the spikes
+    # start past it, a 2 px rim and two radii (10 px): 18.4 px out
+    r = np.hypot(ev["x"] - 99.5, ev["y"] - 59.5)
+    is_spike = np.isin(ev, spikes)
+    assert on[is_spike & (r > 20)].all()
+    assert not on[is_spike & (r < 18)].any()
+    assert not on[np.isin(ev, light)].any()
+    # a few random events fall on the spikes' rows: nothing else is covered
+    assert on[np.isin(ev, other)].sum() <= 3
+
+
+def test_a_spike_without_its_partner_is_no_spike():
+    spike = _ray(1, 8, 90)
+    assert not _on(merge_events(_light(), spike), spike).any()
+    # unless the border hides where the partner would be: a light 12 px from the left
+    near = _ray(1, 8, 100, cx=12)
+    on = _on(merge_events(_light(cx=12), near), near)
+    r = near["x"] - 11.5
+    # (a spike's last ring, partly covered, is too thin a share to be filled)
+    assert on[(r > 20) & (r < 84)].all() and not on[r < 18].any()
+
+
+def test_a_sparse_spike_is_left_to_the_network():
+    # one event per pixel: none saturated
+    assert MIN_PIXEL_EVENTS == 2
+    spikes = merge_events(_ray(1, 8, 90, per_px=1), _ray(-1, 8, 90, per_px=1))
+    assert not _on(merge_events(_light(), spikes), spikes).any()
+
+
+def test_a_dense_object_beside_the_light_spans_too_many_angles():
+    # a solid 40x40 block just right of the light (a ball of a Newton's cradle), and its
+    # mirror on the left: runs at every angle the blocks span, no narrow spike
+    blocks = []
+    for x0 in (118, 42):
+        yy, xx = np.mgrid[40:80, x0 : x0 + 40]
+        blocks.append(
+            make_events(
+                np.arange(4 * xx.size),
+                np.tile(xx.ravel(), 4),
+                np.tile(yy.ravel(), 4),
+                np.ones(4 * xx.size),
+            )
+        )
+    both = merge_events(*blocks)
+    assert not _on(merge_events(_light(), both), both).any()
+
+
+def test_without_a_light_nothing_is_covered(rng):
+    ev = merge_events(_ray(1, 8, 90), _ray(-1, 8, 90), random_events(rng, 500, SIZE, 0, 20_000))
+    assert not in_streak_prior(ev, SIZE, 20_000).any()
+
+
+def test_the_shift_lowers_exactly_the_logits_on_the_spikes(rng):
+    ev = merge_events(
+        _light(), _ray(1, 8, 90), _ray(-1, 8, 90), random_events(rng, 300, SIZE, 0, 20_000)
+    )
+    weights = bundled_weights()
+    plain = ModelDeflarer(weights, streak_shift=0.0).window_logits([(0, ev)], SIZE)[0]
+    shifted = ModelDeflarer(weights, streak_shift=2.5).window_logits([(0, ev)], SIZE)[0]
+    lights = light_cells(ev, SIZE, 20_000)
+    inside = in_streak_prior(ev, SIZE, 20_000, lights=lights)
+    assert 0 < inside.sum() < len(ev)
+    np.testing.assert_allclose(plain - shifted, 2.5 * inside, atol=1e-5)
+    kept = create_method("model", streak_shift=0.0, phase_shift_us=0)(ev, SIZE, rng=0)
+    cut = create_method("model", streak_shift=20.0, phase_shift_us=0)(ev, SIZE, rng=0)
+    assert np.isin(cut, kept).all()
+    assert in_streak_prior(ev, SIZE, 20_000)[np.isin(ev, kept[~np.isin(kept, cut)])].all()
+
+
+@pytest.mark.parametrize("size", [(200, 120), (1280, 720)])
+def test_an_empty_window_has_no_spikes(size):
+    assert in_streak_prior(make_events([], [], [], []), size, 20_000).shape == (0,)
