@@ -1,13 +1,14 @@
 """What the default model's priors cost in time, on recordings with bright lights.
 
-The halo prior (``edeflare.models.halos``) and the ghost prior
-(``edeflare.models.ghosts``), both on in the bundled default, are per-window work after
-the network: a light test on 8x8 cells, around each light a distance transform, and
-the ghosts' cells with a neighbourhood count of the events in them. A
+The halo prior (``edeflare.models.halos``), the ghost prior (``edeflare.models.ghosts``)
+and the diffraction-spike prior (``edeflare.models.streaks``), all on in the bundled
+default, are per-window work after the network: a light test on 8x8 cells, around each
+light the distances of the events near it, the ghosts' cells with a neighbourhood count
+of the events in them, and around each light the events binned by angle and ring. A
 window without a light costs one cell count. Each case de-flares one recording in
 memory (``edeflare.deflare``, the model loaded and warmed once per row), best of
-``--repeat`` runs. The reference in the same run is the same model with both priors
-off (``halo_shift=0, ghost_shift=0``): ``ratio`` is each row's time over it.
+``--repeat`` runs. The reference in the same run is the same model with every prior
+off (``halo_shift=0, ghost_shift=0, streak_shift=0``): ``ratio`` is each row's time over it.
 
 Cases: the two annotated real recordings with lights (Prophesee Gen3 rotating light,
 640x480, 50 ms; DAVIS346 lamps, 130 ms) and a synthetic 1280x720 second with a
@@ -33,10 +34,10 @@ from edeflare.events import EVENT_DTYPE, merge_events
 from edeflare.io import read_events
 
 ROWS = {
-    "default, priors off (reference)": {"halo_shift": 0.0, "ghost_shift": 0.0},
-    "default, halo prior only": {"ghost_shift": 0.0},
-    "default (halo and ghost shift 1)": {},
-    "default + ghost shift 2": {"ghost_shift": 2.0},
+    "default, priors off (reference)": {"halo_shift": 0.0, "ghost_shift": 0.0, "streak_shift": 0.0},
+    "default, halo prior only": {"ghost_shift": 0.0, "streak_shift": 0.0},
+    "default without the spike prior": {"streak_shift": 0.0},
+    "default (halo, ghost and spike priors)": {},
 }
 
 

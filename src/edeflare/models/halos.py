@@ -27,6 +27,7 @@ A window without a light is left alone.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 from scipy import ndimage
@@ -99,16 +100,41 @@ class _CellIndex:
         return i[(x >= xs.start) & (x < xs.stop) & (y >= ys.start) & (y < ys.stop)]
 
 
+_LightsFound = tuple[np.ndarray, list[tuple[slice, slice, np.ndarray, float]], "_Coords | None"]
+_last = threading.local()  # per thread: the last window's lights, for the next prior
+
+
 def _lights(
     events: np.ndarray,
     sensor_size: SensorSize,
     window_us: int,
     cell: int,
     lights: np.ndarray | None = None,
-) -> tuple[np.ndarray, list[tuple[slice, slice, np.ndarray, float]], _Coords | None]:
+) -> _LightsFound:
     """The light cells; per light its box (pixel slices), its pixels in the box and its
     radius; the events' coordinates (None without a light). Only the lights'
-    neighbourhoods are looked at, never the whole frame."""
+    neighbourhoods are looked at, never the whole frame.
+
+    The priors of one window ask in turn with the same arrays: the answer for the same
+    ``events`` and ``lights`` objects and arguments is kept (one per thread) and given
+    again, instead of finding the lights once per prior."""
+    key = (sensor_size, window_us, cell)
+    memo = getattr(_last, "memo", None)
+    if memo is not None and memo[0] is events and memo[1] is lights and memo[2] == key:
+        return memo[3]
+    found = _find_lights(events, sensor_size, window_us, cell, lights)
+    _last.memo = (events, lights, key, found)
+    return found
+
+
+def _find_lights(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    window_us: int,
+    cell: int,
+    lights: np.ndarray | None,
+) -> _LightsFound:
+    """:func:`_lights`, computed."""
     width, height = check_sensor_size(sensor_size)
     if lights is None:
         lights = light_cells(events, sensor_size, window_us, cell=cell)
@@ -309,11 +335,20 @@ def in_halo_prior(
         if sel.size == 0:
             continue
         edge = np.argwhere(own & ~ndimage.binary_erosion(own, border_value=0))
+        # each pixel asked once: a pixel map of the box, its marked pixels in order
+        w = bx.stop - bx.start
+        pid = (y[sel] - by.start) * w + (x[sel] - bx.start)
+        marked = np.zeros((by.stop - by.start) * w, dtype=bool)
+        marked[pid] = True
+        pixels = np.flatnonzero(marked)
+        py, px = np.divmod(pixels, w)
         d, _ = cKDTree(edge).query(
-            np.stack([y[sel] - ys.start, x[sel] - xs.start], axis=1),
+            np.stack([py + (by.start - ys.start), px + (bx.start - xs.start)], axis=1),
             distance_upper_bound=reach + 1.0,
         )
-        inside[sel[(d > _MARGIN_PX) & (d <= reach)]] = True
+        band = np.zeros(marked.size, dtype=bool)
+        band[pixels] = (d > _MARGIN_PX) & (d <= reach)
+        inside[sel[band[pid]]] = True
     return inside
 
 

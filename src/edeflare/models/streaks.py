@@ -10,13 +10,13 @@ connected is what a scene edge looks like to a cell.
 
 This prior finds them from the geometry alone. Around each light of the window (the
 test of :func:`~edeflare.models.halos.light_pixels`: its centre, the farthest of its
-pixels from the centre, its radius ``R``) the events out to :data:`STREAK_EXTENT`
-radii are binned by angle (:data:`ANGLE_BINS` around) and by distance (rings of
-``RADIAL_BIN_PX``), starting ``SKIP_RADII`` radii beyond the light's edge (the
-light's rim and its near halo belong to the other priors). A bin is *filled* where at
-least :data:`FILL_SHARE` of its area is saturated pixels (:data:`MIN_PIXEL_EVENTS`
-events or more). An angle's *run* is how far its filled bins go out from the start,
-across gaps of at most ``MAX_GAP_BINS`` rings. An angle is a spike where
+pixels from the centre, its radius ``R``) the saturated pixels (:data:`MIN_PIXEL_EVENTS`
+events or more) out to :data:`STREAK_EXTENT` radii are binned by angle
+(:data:`ANGLE_BINS` around) and by distance (rings of ``RADIAL_BIN_PX``), starting
+``SKIP_RADII`` radii beyond the light's edge (the light's rim and its near halo belong
+to the other priors). A bin is *filled* where saturated pixels cover at least
+:data:`FILL_SHARE` of its area. An angle's *run* is how far its filled bins go out from
+the start, across gaps of at most ``MAX_GAP_BINS`` rings. An angle is a spike where
 
 - its run is at least ``max(MIN_LENGTH_RADII R, MIN_LENGTH_PX)`` plus
   ``FLANK_FACTOR`` times the median run on its busier flank (the angles
@@ -26,7 +26,7 @@ across gaps of at most ``MAX_GAP_BINS`` rings. An angle is a spike where
 - the opposite angle (within ``PAIR_TOLERANCE_BINS`` bins) is a spike too, unless
   the sensor's border cuts the opposite direction off before a spike could be seen.
 
-The prior is the events of each spike angle up to the end of its run.
+The prior is the events in the pixels of each spike angle up to the end of its run.
 :class:`~edeflare.models.infer.ModelDeflarer` lowers their keep logit by the card's
 ``streak_shift``. The measurements behind the constants: ``experiments/streaks/README.md``.
 """
@@ -39,7 +39,7 @@ import numpy as np
 
 from ..events import SensorSize, check_sensor_size
 from .ghosts import check_logit_shift
-from .halos import _CellIndex, _lights
+from .halos import _lights
 
 __all__ = [
     "ANGLE_BINS",
@@ -109,6 +109,28 @@ def _spikes(run: np.ndarray, need: float, room: np.ndarray) -> np.ndarray:
     return spike & (partner | unseen)
 
 
+def _polar_bins(
+    dx: np.ndarray, dy: np.ndarray, start: float, n_rings: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Of points at ``(dx, dy)`` from a light's centre: which fall in a ring, and those
+    points' rings and angle bins."""
+    ring = np.floor((np.hypot(dx, dy) - start) / RADIAL_BIN_PX).astype(np.int64)
+    ok = (ring >= 0) & (ring < n_rings)
+    theta = np.arctan2(dy[ok], dx[ok])
+    tb = ((theta + math.pi) * (ANGLE_BINS / (2 * math.pi))).astype(np.int64) % ANGLE_BINS
+    return ok, ring[ok], tb
+
+
+def _near(
+    ys: np.ndarray, xs: np.ndarray, cy: float, cx: float, reach: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels ``(ys, xs)`` (sorted by row) in the square of half-side ``reach``
+    around ``(cy, cx)``."""
+    lo, hi = np.searchsorted(ys, [cy - reach, cy + reach + 1])
+    keep = np.abs(xs[lo:hi] - cx) <= reach
+    return ys[lo:hi][keep], xs[lo:hi][keep]
+
+
 def in_streak_prior(
     events: np.ndarray,
     sensor_size: SensorSize,
@@ -139,52 +161,33 @@ def in_streak_prior(
     (True, False, False)
     """
     width, height = check_sensor_size(sensor_size)
-    lights, found, at = _lights(events, sensor_size, window_us, cell, lights)
-    inside = np.zeros(events.size, dtype=bool)
+    _, found, at = _lights(events, sensor_size, window_us, cell, lights)
     if not found or at is None:
-        return inside
-    boxes = []
-    around = np.zeros_like(lights)
+        return np.zeros(events.size, dtype=bool)
+    # per pixel, once: a spike is found from the saturated pixels alone, and the
+    # pixels with events are judged (not each event) where one is found
+    pixel = at.y * width + at.x
+    n_px = np.bincount(pixel, minlength=width * height)
+    sat_y, sat_x = np.divmod(np.flatnonzero(n_px >= MIN_PIXEL_EVENTS), width)
+    any_y, any_x = np.divmod(np.flatnonzero(n_px), width)
+    on_spike = np.zeros(width * height, dtype=bool)
+    angle = (np.arange(ANGLE_BINS) + 0.5) / ANGLE_BINS * 2 * math.pi - math.pi
+    cos, sin = np.cos(angle), np.sin(angle)
     for ys, xs, own, radius in found:
         py, px = np.nonzero(own)
         cy, cx = py.mean() + ys.start, px.mean() + xs.start
         edge = float(np.hypot(py + ys.start - cy, px + xs.start - cx).max())
         reach = STREAK_EXTENT * radius
-        by = slice(max(math.floor(cy - reach), 0), min(math.ceil(cy + reach) + 1, height))
-        bx = slice(max(math.floor(cx - reach), 0), min(math.ceil(cx + reach) + 1, width))
-        around[
-            by.start // cell : (by.stop - 1) // cell + 1,
-            bx.start // cell : (bx.stop - 1) // cell + 1,
-        ] = True
-        boxes.append((by, bx, cy, cx, edge, radius, reach))
-    index = _CellIndex(at, np.flatnonzero(around.ravel()[at.cid]))
-    angle = (np.arange(ANGLE_BINS) + 0.5) / ANGLE_BINS * 2 * math.pi - math.pi
-    cos, sin = np.cos(angle), np.sin(angle)
-    for by, bx, cy, cx, edge, radius, reach in boxes:
-        sel = index.box(by, bx)
-        if sel.size == 0:
-            continue
-        dx, dy = at.x[sel] - cx, at.y[sel] - cy
-        rho = np.hypot(dx, dy)
         start = edge + 2.0 + SKIP_RADII * radius
         n_rings = math.ceil((reach - start) / RADIAL_BIN_PX)
         if n_rings < 2:
             continue
-        ring = np.floor((rho - start) / RADIAL_BIN_PX).astype(np.int64)
-        ok = (ring >= 0) & (ring < n_rings)
-        sel, ring = sel[ok], ring[ok]
-        theta = np.arctan2(dy[ok], dx[ok])
-        tb = ((theta + math.pi) * (ANGLE_BINS / (2 * math.pi))).astype(np.int64) % ANGLE_BINS
-        # a bin is filled where at least FILL_SHARE of its pixels saturate (fire
-        # MIN_PIXEL_EVENTS or more events); its area is the annulus sector's, and a bin
-        # under a pixel's area (next to a small light) neither fills nor breaks a run
-        key = tb * n_rings + ring
-        pixel, first, n_px = np.unique(
-            (at.y[sel] - by.start) * (bx.stop - bx.start) + (at.x[sel] - bx.start),
-            return_index=True,
-            return_counts=True,
-        )
-        hot = np.bincount(key[first[n_px >= MIN_PIXEL_EVENTS]], minlength=ANGLE_BINS * n_rings)
+        near_y, near_x = _near(sat_y, sat_x, cy, cx, reach)
+        _, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
+        # a bin is filled where saturated pixels cover at least FILL_SHARE of its area
+        # (the annulus sector's); a bin under a pixel's area (next to a small light)
+        # neither fills nor breaks a run
+        hot = np.bincount(tb * n_rings + ring, minlength=ANGLE_BINS * n_rings)
         mid = start + RADIAL_BIN_PX * (np.arange(n_rings) + 0.5)
         area = np.tile(2 * math.pi / ANGLE_BINS * RADIAL_BIN_PX * mid, ANGLE_BINS)
         filled = (hot >= FILL_SHARE * area) | (area < 1.0)
@@ -195,9 +198,15 @@ def in_streak_prior(
         room = (np.minimum(tx, ty) - start) / RADIAL_BIN_PX
         need = max(MIN_LENGTH_RADII * radius, MIN_LENGTH_PX) / RADIAL_BIN_PX
         spike = _spikes(run, need, room)
-        if spike.any():
-            inside[sel[spike[tb] & (ring < run[tb])]] = True
-    return inside
+        if not spike.any():
+            continue
+        # the pixels with events out to the longest spike's end
+        far = start + RADIAL_BIN_PX * float(run[spike].max())
+        near_y, near_x = _near(any_y, any_x, cy, cx, far)
+        ok, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
+        hit = spike[tb] & (ring < run[tb])
+        on_spike[near_y[ok][hit] * width + near_x[ok][hit]] = True
+    return on_spike[pixel]
 
 
 def check_streak_shift(value: object) -> float:
