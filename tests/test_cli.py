@@ -52,10 +52,9 @@ def test_info_prints_a_weights_files_card(tmp_path, capsys):
     assert main(["info", "night"]) == 0  # a bundled model, by name
     out = capsys.readouterr().out
     assert "preset      mask.pixel (8 bins, 20 ms windows)" in out
-    assert (
-        "priors      halo_shift 1, ghost_shift 1" in out and "keep        probability > 0.5" in out
-    )
-    assert "score_davis_lamps_combined 0.789" in out
+    assert "priors      halo_shift 3, ghost_shift 3, streak_shift 8" in out
+    assert "keep        probability > 0.4" in out
+    assert "score_davis_lamps_combined 0.81" in out
     path = tmp_path / "m.safetensors"
     save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny", seed=3))
     assert main(["info", str(path)]) == 0
