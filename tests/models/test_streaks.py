@@ -128,3 +128,19 @@ def test_the_shift_lowers_exactly_the_logits_on_the_spikes(rng):
 @pytest.mark.parametrize("size", [(200, 120), (1280, 720)])
 def test_an_empty_window_has_no_spikes(size):
     assert in_streak_prior(make_events([], [], [], []), size, 20_000).shape == (0,)
+
+
+def test_a_round_light_on_a_spike_of_another_keeps_its_events():
+    # a second lamp (radius 4) 40 px along one spike of the first: the spike runs
+    # through it, and the lamp is kept; the spike's events beyond it are covered
+    yy, xx = np.mgrid[56:64, 136:144]
+    n = 20 * xx.size
+    lamp = make_events(
+        np.arange(n) + 10_000, np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20), np.zeros(n)
+    )
+    spikes = merge_events(_ray(1, 8, 90), _ray(-1, 8, 90))
+    ev = merge_events(_light(), lamp, spikes)
+    on = in_streak_prior(ev, SIZE, 20_000)
+    assert not on[np.isin(ev, lamp)].any()
+    beyond = np.isin(ev, spikes) & (ev["x"] > 150)
+    assert beyond.any() and on[beyond].all()

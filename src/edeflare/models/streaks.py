@@ -75,6 +75,7 @@ LOCAL_HALF_BINS = 15
 FLANK_GAP_BINS = 3
 FLANK_FACTOR = 2.0
 PAIR_TOLERANCE_BINS = 2
+ROUND_AREA = 2.0  # a round light's area is at most this many discs of its radius
 
 
 def _runs(filled: np.ndarray, max_gap: int) -> np.ndarray:
@@ -206,6 +207,14 @@ def in_streak_prior(
         ok, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
         hit = spike[tb] & (ring < run[tb])
         on_spike[near_y[ok][hit] * width + near_x[ok][hit]] = True
+    # no round light is on a spike: a spike runs on through the lights in its way
+    # (another lamp of a row, or its own source seen from a segment of the spike
+    # that passes the light test itself); those segments are long, not round
+    if on_spike.any():
+        frame = on_spike.reshape(height, width)
+        for ys, xs, own, radius in found:
+            if own.sum() <= ROUND_AREA * math.pi * radius**2:
+                frame[ys, xs] &= ~own
     return on_spike[pixel]
 
 
