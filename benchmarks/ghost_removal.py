@@ -12,9 +12,9 @@ of the events to keep kept (means over the sequences holding at least 100 events
 kind; one huge light can hold most of the pooled events) and the harmonic mean of the
 three. The reference is dv-processing's ``FastDecayNoiseFilter`` (dv-fastdecay), the
 filter users already run, which removes the ghost ring of
-``../shared/reference/real_flare_example.png``. The row ``model, ghost shift 2`` is the
-model with its keep logits lowered by 2 inside the ghost prior
-(:mod:`edeflare.models.ghosts`, ``--ghost-shift 2``). Prints the table and writes
+``../shared/reference/real_flare_example.png``. The row ``model, card before`` is the
+default with the card it had before the sixth session of 2026-11-26 (threshold 0.5,
+halo and ghost shifts 1, no spike prior; ``experiments/streaks``). Prints the table and writes
 ``results/ghost_removal.json``. Run::
 
     python benchmarks/ghost_removal.py [--model WEIGHTS] [--data DIR]
@@ -42,7 +42,11 @@ from edeflare.sim.sensing import in_ghosts, source_track
 ROWS = {
     "raw": ("raw", {}),
     "model": ("model", {}),
-    "model, ghost shift 2": ("model", {"ghost_shift": 2.0}),
+    # the default's card before the sixth session of 2026-11-26 (experiments/streaks)
+    "model, card before": (
+        "model",
+        {"keep_threshold": 0.5, "halo_shift": 1.0, "ghost_shift": 1.0, "streak_shift": 0.0},
+    ),
     "dv-fastdecay": ("dv-fastdecay", {}),
     "dv-bafilter": ("dv-bafilter", {}),
     "dv-knoise": ("dv-knoise", {}),

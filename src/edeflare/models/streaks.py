@@ -185,6 +185,12 @@ def in_streak_prior(
             continue
         near_y, near_x = _near(sat_y, sat_x, cy, cx, reach)
         _, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
+        need = max(MIN_LENGTH_RADII * radius, MIN_LENGTH_PX) / RADIAL_BIN_PX
+        # a spike's run fills at least one ring in MAX_GAP_BINS + 1, each with a saturated
+        # pixel, but for the first two, which can be under a pixel's area: a light with
+        # fewer saturated pixels around it has none (a lamp over a dark scene)
+        if ring.size < math.ceil(need / (MAX_GAP_BINS + 1)) - 2:
+            continue
         # a bin is filled where saturated pixels cover at least FILL_SHARE of its area
         # (the annulus sector's); a bin under a pixel's area (next to a small light)
         # neither fills nor breaks a run
@@ -192,12 +198,17 @@ def in_streak_prior(
         mid = start + RADIAL_BIN_PX * (np.arange(n_rings) + 0.5)
         area = np.tile(2 * math.pi / ANGLE_BINS * RADIAL_BIN_PX * mid, ANGLE_BINS)
         filled = (hot >= FILL_SHARE * area) | (area < 1.0)
-        run = _runs(filled.reshape(ANGLE_BINS, n_rings), MAX_GAP_BINS)
+        # only the angles with a filled ring are followed out (the others' run is 0)
+        filled = filled.reshape(ANGLE_BINS, n_rings)
+        can = filled.any(axis=1)
+        run = np.zeros(ANGLE_BINS, dtype=np.int64)
+        run[can] = _runs(filled[can], MAX_GAP_BINS)
+        if run.max() < need:
+            continue
         with np.errstate(divide="ignore", invalid="ignore"):
             tx = np.where(cos > 0, (width - 1 - cx) / cos, np.where(cos < 0, -cx / cos, np.inf))
             ty = np.where(sin > 0, (height - 1 - cy) / sin, np.where(sin < 0, -cy / sin, np.inf))
         room = (np.minimum(tx, ty) - start) / RADIAL_BIN_PX
-        need = max(MIN_LENGTH_RADII * radius, MIN_LENGTH_PX) / RADIAL_BIN_PX
         spike = _spikes(run, need, room)
         if not spike.any():
             continue
