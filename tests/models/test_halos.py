@@ -193,3 +193,19 @@ def test_the_events_band_is_the_pixel_maps_band(rng):
     inside = in_halo_prior(ev, size, 20_000)
     np.testing.assert_array_equal(inside, halo_pixels(ev, size, 20_000)[ev["y"], ev["x"]])
     assert light_pixels(ev, size, 20_000)[1].size == 3 and 500 < inside.sum() < 10_000
+
+
+def test_the_priors_of_a_window_share_its_lights_and_no_other_window_does(rng):
+    ev = merge_events(_block(40, 20), random_events(rng, 300, SIZE, t0=0, span_us=20_000))
+    lights = light_cells(ev, SIZE, 20_000)
+    first = in_halo_prior(ev, SIZE, 20_000, lights=lights)
+    np.testing.assert_array_equal(first, in_halo_prior(ev, SIZE, 20_000))  # kept = computed
+    # another window (a new array, its light moved) with the same light cells array: its
+    # own lights are found, not the last window's
+    moved = ev.copy()
+    moved["x"][moved["x"] < 60] += 30
+    np.testing.assert_array_equal(
+        in_halo_prior(moved, SIZE, 20_000, lights=light_cells(moved, SIZE, 20_000)),
+        in_halo_prior(moved, SIZE, 20_000),
+    )
+    assert (in_halo_prior(moved, SIZE, 20_000) != first).any()

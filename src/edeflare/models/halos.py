@@ -115,9 +115,13 @@ def _lights(
     radius; the events' coordinates (None without a light). Only the lights'
     neighbourhoods are looked at, never the whole frame.
 
-    The priors of one window ask in turn with the same arrays: the answer for the same
-    ``events`` and ``lights`` objects and arguments is kept (one per thread) and given
-    again, instead of finding the lights once per prior."""
+    The priors of one window ask in turn with the same arrays, its light cells counted
+    once (:meth:`~edeflare.models.infer.ModelDeflarer.window_logits`): the answer for
+    the same ``events`` and ``lights`` objects and arguments is kept (one per thread)
+    and given again, instead of finding the lights once per prior. Without ``lights``
+    nothing is kept."""
+    if lights is None:
+        return _find_lights(events, sensor_size, window_us, cell, None)
     key = (sensor_size, window_us, cell)
     memo = getattr(_last, "memo", None)
     if memo is not None and memo[0] is events and memo[1] is lights and memo[2] == key:
