@@ -77,3 +77,19 @@ def test_bad_prior_settings_are_refused(kw, what):
         ghost_cells(_light(0, 0), (64, 64), 20_000, **kw)
     with pytest.raises(ValueError, match="window_us"):
         ghost_cells(_light(0, 0), (64, 64), 0)
+
+
+def test_light_cells_of_another_grid_are_refused():
+    with pytest.raises(ValueError, match="lights has shape"):
+        ghost_cells(_light(0, 0), (64, 64), 20_000, lights=np.ones((4, 4), dtype=bool))
+
+
+def test_the_ghost_maps_are_computed_once_per_sensor_and_cannot_be_changed():
+    from edeflare.models.ghosts import GHOST_FACTORS, _ghost_maps
+
+    first = _ghost_maps(64, 64, 8, GHOST_FACTORS)
+    assert _ghost_maps(64, 64, 8, GHOST_FACTORS)[0] is first[0]
+    with pytest.raises(ValueError, match="read-only"):
+        first[2][0, 0] = 5
+    # factor -1 of cell (0, 0) (the point reflected through the centre): cell (7, 7)
+    assert first[2][GHOST_FACTORS.index(-1.0), 0] == 7 * 8 + 7

@@ -195,6 +195,40 @@ def test_the_events_band_is_the_pixel_maps_band(rng):
     assert light_pixels(ev, size, 20_000)[1].size == 3 and 500 < inside.sum() < 10_000
 
 
+def test_the_inside_of_a_ring_shaped_light_is_the_lights_not_its_halo(rng):
+    # a bright ring (radii 22-30 px) with a dark middle: its filled hole is the light's,
+    # and the events there (beyond the cells next to the ring's) are in no halo, in the
+    # events' band as on the pixel map
+    size = (320, 240)
+    yy, xx = np.mgrid[-30:31, -30:31]
+    ring = (np.hypot(xx, yy) <= 30) & (np.hypot(xx, yy) >= 22)
+    lit = make_events(
+        np.arange(30 * ring.sum()) * 20_000 // (30 * ring.sum()),
+        np.tile(160 + xx[ring], 30),
+        np.tile(120 + yy[ring], 30),
+        np.ones(30 * ring.sum()),
+    )
+    middle = make_events([5, 6, 7], [160, 157, 163], [120, 122, 118], [1, 0, 1])
+    ev = merge_events(lit, middle, random_events(rng, 5_000, size, t0=0, span_us=20_000))
+    inside = in_halo_prior(ev, size, 20_000)
+    np.testing.assert_array_equal(inside, halo_pixels(ev, size, 20_000)[ev["y"], ev["x"]])
+    in_middle = np.hypot(ev["x"].astype(float) - 160, ev["y"].astype(float) - 120) <= 4
+    assert in_middle.sum() >= 3 and not inside[in_middle].any()
+    assert inside.sum() > 1_000  # the band around the ring is there
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_filling_a_lights_holes_is_scipys_fill(seed):
+    from scipy import ndimage
+
+    from edeflare.models.halos import _fill_holes
+
+    mask = np.random.default_rng(seed).random((40, 56)) < 0.55
+    np.testing.assert_array_equal(_fill_holes(mask), ndimage.binary_fill_holes(mask))
+    assert _fill_holes(np.zeros((3, 4), bool)).sum() == 0
+    assert _fill_holes(np.ones((3, 4), bool)).all()
+
+
 def test_the_priors_of_a_window_share_its_lights_and_no_other_window_does(rng):
     ev = merge_events(_block(40, 20), random_events(rng, 300, SIZE, t0=0, span_us=20_000))
     lights = light_cells(ev, SIZE, 20_000)

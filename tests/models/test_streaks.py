@@ -50,6 +50,19 @@ def test_runs_bridge_short_gaps_and_stop_at_long_ones():
     np.testing.assert_array_equal(_runs(filled, 0), [2, 1, 0, 8])
 
 
+def test_flank_medians_are_the_medians_of_the_angles_on_each_side():
+    from edeflare.models.streaks import _flank_medians
+
+    run = np.arange(20) ** 2 % 7  # 0 1 4 2 2 4 1 0 1 4 ...
+    left, right = _flank_medians(run, 4, 2)  # the angles 2-4 bins away on each side
+    assert left[5] == np.median(run[[1, 2, 3]]) == 2.0
+    assert right[5] == np.median(run[[7, 8, 9]]) == 1.0
+    assert left[0] == np.median(run[[16, 17, 18]])  # around the circle
+    assert right[19] == np.median(run[[1, 2, 3]])
+    even_left, _ = _flank_medians(run, 4, 1)  # four angles: the mean of the middle two
+    assert even_left[5] == np.median(run[[1, 2, 3, 4]])
+
+
 def test_opposite_saturated_spikes_are_covered_and_the_light_and_the_rest_are_not(rng):
     spikes = merge_events(_ray(1, 8, 90), _ray(-1, 8, 90))
     other = random_events(rng, 200, SIZE, t0=0, span_us=20_000)

@@ -24,6 +24,7 @@ millisecond (320 events in an 8x8 cell in 20 ms).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -144,27 +145,54 @@ def ghost_cells(
     if lights is None:
         lights = light_cells(events, sensor_size, window_us, cell=cell)
     h, w = lights.shape
+    if (h, w) != (-(-height // cell), -(-width // cell)):
+        raise ValueError(
+            f"lights has shape {lights.shape}, not the {width}x{height} sensor's cells"
+        )
     prior = np.zeros((h, w), dtype=bool)
     if not lights.any():
         return prior
-    cy, cx = height / 2 / cell, width / 2 / cell  # the centre, in cells
-    yy, xx = np.mgrid[0:h, 0:w] + 0.5  # cell centres
-    ly, lx = np.nonzero(lights)
-    for k in factors:
-        # a cell holds a ghost if the point it maps back to is a light (fills the ghosts
-        # larger than their source, |k| > 1) ...
-        sy = np.floor(cy + (yy - cy) / k).astype(np.int64)
-        sx = np.floor(cx + (xx - cx) / k).astype(np.int64)
-        ok = (sy >= 0) & (sy < h) & (sx >= 0) & (sx < w)
-        prior[ok] |= lights[sy[ok], sx[ok]]
-        # ... and every light marks the cell of its ghost (those smaller, |k| < 1)
-        gy = np.floor(cy + k * (ly + 0.5 - cy)).astype(np.int64)
-        gx = np.floor(cx + k * (lx + 0.5 - cx)).astype(np.int64)
-        ok = (gy >= 0) & (gy < h) & (gx >= 0) & (gx < w)
-        prior[gy[ok], gx[ok]] = True
+    back_from, back_to, forth = _ghost_maps(width, height, cell, tuple(factors))
+    flat, lit = prior.ravel(), lights.ravel()
+    flat[back_to[lit[back_from]]] = True
+    ghosts = forth[:, np.flatnonzero(lit)]
+    flat[ghosts[ghosts >= 0]] = True
     if widen:
         prior = ndimage.binary_dilation(prior, iterations=widen)
     return prior & ~ndimage.binary_dilation(lights, iterations=1)
+
+
+@functools.lru_cache(maxsize=16)
+def _ghost_maps(
+    width: int, height: int, cell: int, factors: tuple[float, ...]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where ghosts fall, per sensor: the same for every window, so computed once.
+
+    For every factor ``k``, a cell holds a ghost if the point it maps back to is a light
+    (this fills the ghosts larger than their source, ``|k| > 1``): the pairs (cell it
+    maps back to, cell) as ``back_from``, ``back_to`` (flat cell indices, on the grid
+    only). And every light marks the cell of its ghost (those smaller, ``|k| < 1``):
+    ``forth[j, c]``, the flat cell of the ghost of cell ``c`` at factor ``j``, -1 off
+    the grid."""
+    h, w = -(-height // cell), -(-width // cell)
+    cy, cx = height / 2 / cell, width / 2 / cell  # the centre, in cells
+    yy, xx = np.mgrid[0:h, 0:w] + 0.5  # cell centres
+    ids = np.arange(h * w).reshape(h, w)
+    back_from, back_to, forth = [], [], []
+    for k in factors:
+        sy = np.floor(cy + (yy - cy) / k).astype(np.int64)
+        sx = np.floor(cx + (xx - cx) / k).astype(np.int64)
+        ok = (sy >= 0) & (sy < h) & (sx >= 0) & (sx < w)
+        back_from.append(sy[ok] * w + sx[ok])
+        back_to.append(ids[ok])
+        gy = np.floor(cy + k * (yy - cy)).astype(np.int64)
+        gx = np.floor(cx + k * (xx - cx)).astype(np.int64)
+        ok = (gy >= 0) & (gy < h) & (gx >= 0) & (gx < w)
+        forth.append(np.where(ok, gy * w + gx, -1).ravel())
+    maps = np.concatenate(back_from), np.concatenate(back_to), np.stack(forth)
+    for a in maps:
+        a.setflags(write=False)  # shared by every caller
+    return maps
 
 
 def in_ghost_prior(

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from ..events import SensorSize, check_sensor_size
@@ -78,29 +79,56 @@ PAIR_TOLERANCE_BINS = 2
 ROUND_AREA = 2.0  # a round light's area is at most this many discs of its radius
 
 
-def _runs(filled: np.ndarray, max_gap: int) -> np.ndarray:
+@numba.njit(cache=True, nogil=True)
+def _runs(filled, max_gap):  # pragma: no cover - compiled
     """Per row of ``filled`` (angle, ring), how many rings its run covers: up to and
-    including the last filled ring before the first gap longer than ``max_gap``."""
-    n_rings = filled.shape[1]
-    # a ring starts a break where it and the max_gap rings after it are all empty
-    empty = np.pad(~filled, ((0, 0), (0, max_gap)), constant_values=True)
-    window = np.lib.stride_tricks.sliding_window_view(empty, max_gap + 1, axis=1)
-    breaks = window.all(axis=2)[:, :n_rings]
-    first_break = np.where(breaks.any(axis=1), breaks.argmax(axis=1), n_rings)
-    ring = np.arange(n_rings)
-    before = filled & (ring[None, :] < first_break[:, None])
-    return np.where(before.any(axis=1), n_rings - before[:, ::-1].argmax(axis=1), 0)
+    including the last filled ring before the first gap longer than ``max_gap``.
+
+    A loop (numba) rather than numpy: the rows are short and a light has one call, so
+    numpy's per-call overhead was most of the time."""
+    n_angles, n_rings = filled.shape
+    out = np.zeros(n_angles, np.int64)
+    for a in range(n_angles):
+        gap = 0
+        for r in range(n_rings):
+            if filled[a, r]:
+                out[a] = r + 1
+                gap = 0
+            else:
+                gap += 1
+                if gap > max_gap:
+                    break
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _flank_medians(run, half, gap):  # pragma: no cover - compiled
+    """Per angle, the median run on its left and on its right flank (the angles
+    ``gap`` to ``half`` bins away on that side, around the circle)."""
+    n = run.size
+    width = half - gap + 1
+    left = np.empty(n, np.float64)
+    right = np.empty(n, np.float64)
+    buf = np.empty(width, np.int64)
+    for i in range(n):
+        for side in range(2):
+            for j in range(width):
+                d = j + gap if side else j - half
+                buf[j] = run[(i + d) % n]
+            buf.sort()
+            m = buf[width // 2] if width % 2 else 0.5 * (buf[width // 2 - 1] + buf[width // 2])
+            if side:
+                right[i] = m
+            else:
+                left[i] = m
+    return left, right
 
 
 def _spikes(run: np.ndarray, need: float, room: np.ndarray) -> np.ndarray:
     """The spike angles among runs ``run`` (rings), ``room``: rings before the border."""
-    h, n = LOCAL_HALF_BINS, run.size
-    ring = np.concatenate([run[-h:], run, run[:h]])
     # the median run on each flank (the bins FLANK_GAP_BINS to h away on that side): a
     # spike stands above both; the edge of a wide object has its body on one flank
-    flanks = np.lib.stride_tricks.sliding_window_view(ring, h - FLANK_GAP_BINS + 1)
-    left = np.median(flanks[:n], axis=1)
-    right = np.median(flanks[h + FLANK_GAP_BINS : h + FLANK_GAP_BINS + n], axis=1)
+    left, right = _flank_medians(run, LOCAL_HALF_BINS, FLANK_GAP_BINS)
     spike = run >= need + FLANK_FACTOR * np.maximum(left, right)
     half = run.size // 2
     partner = np.zeros_like(spike)
@@ -167,8 +195,7 @@ def in_streak_prior(
         return np.zeros(events.size, dtype=bool)
     # per pixel, once: a spike is found from the saturated pixels alone, and the
     # pixels with events are judged (not each event) where one is found
-    pixel = at.y * width + at.x
-    n_px = np.bincount(pixel, minlength=width * height)
+    pixel, n_px = at.pixel, at.counts.ravel()
     sat_y, sat_x = np.divmod(np.flatnonzero(n_px >= MIN_PIXEL_EVENTS), width)
     any_y, any_x = np.divmod(np.flatnonzero(n_px), width)
     on_spike = np.zeros(width * height, dtype=bool)
