@@ -217,14 +217,48 @@ def test_the_inside_of_a_ring_shaped_light_is_the_lights_not_its_halo(rng):
     assert inside.sum() > 1_000  # the band around the ring is there
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_filling_a_lights_holes_is_scipys_fill(seed):
+@pytest.mark.parametrize("shape", ["disc", "ring", "stroke"])
+def test_the_band_of_a_lights_box_is_the_distance_transforms(shape):
+    # _in_band decides most pixels by bounds, then measures the rest in a loop (few
+    # pairs of pixel and edge pixel: the disc, the ring) or a k-d tree (many: a stroke
+    # 600 px long); each way, the band of scipy's exact distance transform
     from scipy import ndimage
 
-    from edeflare.models.halos import _fill_holes
+    from edeflare.models.halos import _edge_pixels, _in_band
+
+    yy, xx = np.mgrid[0:40, 0:640]
+    r = np.hypot(yy - 20, xx - 20)
+    own = {"disc": r <= 9, "ring": (r <= 15) & (r >= 9), "stroke": (yy >= 14) & (yy < 26)}[shape]
+    own = ndimage.binary_fill_holes(own)
+    d = ndimage.distance_transform_edt(~own)
+    py, px = np.mgrid[-60:100, -60:700]
+    py, px = py.ravel(), px.ravel()
+    inside = (py >= 0) & (py < 40) & (px >= 0) & (px < 640)
+    reach = 5.0 * 9.0
+    band = _in_band(own, _edge_pixels(own), py, px, reach)
+    want = np.zeros(py.size, dtype=bool)
+    want[inside] = (d[py[inside], px[inside]] > 2.0) & (d[py[inside], px[inside]] <= reach)
+    np.testing.assert_array_equal(band[inside], want[inside])
+    assert band[inside].sum() > 1_000 and not band[inside][own[py[inside], px[inside]]].any()
+    outside = ~inside  # off the box: the nearest light pixel is as far as the box allows
+    assert not band[outside & ((py < -46) | (py > 85) | (px > 685))].any()
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_lights_filled_holes_radius_and_edge_are_scipys(seed):
+    from scipy import ndimage
+
+    from edeflare.models.halos import _edge_pixels, _fill_holes, _inscribed_radius
 
     mask = np.random.default_rng(seed).random((40, 56)) < 0.55
     np.testing.assert_array_equal(_fill_holes(mask), ndimage.binary_fill_holes(mask))
+    # the light's radius and edge, as scipy's distance transform and erosion give them
+    own = ndimage.binary_fill_holes(ndimage.binary_opening(mask))
+    want = ndimage.distance_transform_edt(np.pad(own, 1)).max()
+    assert _inscribed_radius(own) == want and want >= 1.0
+    np.testing.assert_array_equal(
+        _edge_pixels(own), np.argwhere(own & ~ndimage.binary_erosion(own, border_value=0))
+    )
     assert _fill_holes(np.zeros((3, 4), bool)).sum() == 0
     assert _fill_holes(np.ones((3, 4), bool)).all()
 

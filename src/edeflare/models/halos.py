@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import threading
 
+import numba
 import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
@@ -135,17 +136,108 @@ def _lights(
     return found
 
 
-def _fill_holes(mask: np.ndarray) -> np.ndarray:
-    """``scipy.ndimage.binary_fill_holes(mask)``, the same pixels: the background
-    components (4-connected) that touch no border are holes. One labelling instead of
-    the dilations to convergence that scipy runs, a few times faster on a light's box."""
-    labels, n = ndimage.label(~mask)
-    if n == 0:
-        return mask.copy()
-    outside = np.zeros(n + 1, dtype=bool)
-    for side in (labels[0], labels[-1], labels[:, 0], labels[:, -1]):
-        outside[side] = True
-    return mask | ~outside[labels]
+# A light's shape (its holes filled, its largest inscribed disc, its edge) is made on a
+# box of a few hundred pixels, once per light and window: scipy's calls cost a fixed
+# 0.1-0.3 ms each there, more than the work, and a street of lamps has dozens of lights
+# per window. These loops (numba) give the same pixels and the same radius.
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_holes(mask):  # pragma: no cover - compiled
+    """``scipy.ndimage.binary_fill_holes(mask)``: the background pixels that no
+    4-connected path of background pixels joins to the border are filled."""
+    h, w = mask.shape
+    out = np.ones((h, w), np.bool_)  # filled until reached from the border
+    stack = np.empty((h * w, 2), np.int64)
+    top = 0
+    for y in range(h):
+        for x in range(w):
+            if (y == 0 or y == h - 1 or x == 0 or x == w - 1) and not mask[y, x] and out[y, x]:
+                out[y, x] = False
+                stack[top, 0], stack[top, 1] = y, x
+                top += 1
+                while top:
+                    top -= 1
+                    cy, cx = stack[top, 0], stack[top, 1]
+                    for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+                        ny, nx = cy + dy, cx + dx
+                        if 0 <= ny < h and 0 <= nx < w and not mask[ny, nx] and out[ny, nx]:
+                            out[ny, nx] = False
+                            stack[top, 0], stack[top, 1] = ny, nx
+                            top += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _inscribed_radius(own):  # pragma: no cover - compiled
+    """The largest Euclidean distance from a pixel of ``own`` to a pixel outside it (the
+    box's surroundings are outside): ``distance_transform_edt(np.pad(own, 1)).max()``,
+    by the exact two-pass squared distance transform (Felzenszwalb and Huttenlocher,
+    2012), columns then rows."""
+    h, w = own.shape
+    col = np.empty((h, w), np.int64)  # squared distance to the nearest outside pixel in the column
+    for x in range(w):
+        d = 0
+        for y in range(h):
+            d = d + 1 if own[y, x] else 0
+            col[y, x] = d
+        d = 0
+        for y in range(h - 1, -1, -1):
+            d = d + 1 if own[y, x] else 0
+            col[y, x] = min(col[y, x], d) ** 2
+    best = 0
+    n = w + 2  # the row with one outside pixel at each end
+    f = np.empty(n, np.int64)
+    v = np.empty(n, np.int64)
+    z = np.empty(n + 1, np.float64)
+    for y in range(h):
+        f[0] = 0
+        f[n - 1] = 0
+        for x in range(w):
+            f[x + 1] = col[y, x] if own[y, x] else 0
+        # the lower envelope of the parabolas (q - v)^2 + f(v)
+        k = 0
+        v[0] = 0
+        z[0] = -np.inf
+        z[1] = np.inf
+        for q in range(1, n):
+            s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2.0 * (q - v[k]))
+            while s <= z[k]:  # never past k = 0: z[0] is -inf
+                k -= 1
+                s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2.0 * (q - v[k]))
+            k += 1
+            v[k] = q
+            z[k] = s
+            z[k + 1] = np.inf
+        k = 0
+        for q in range(1, n - 1):
+            while z[k + 1] < q:
+                k += 1
+            d = (q - v[k]) ** 2 + f[v[k]]
+            if d > best and own[y, q - 1]:
+                best = d
+    return np.sqrt(np.float64(best))
+
+
+@numba.njit(cache=True, nogil=True)
+def _edge_pixels(own):  # pragma: no cover - compiled
+    """The ``(row, column)`` of the pixels of ``own`` with a 4-neighbour outside it or
+    on the box's border: ``np.argwhere(own & ~binary_erosion(own, border_value=0))``."""
+    h, w = own.shape
+    out = np.empty((h * w, 2), np.int64)
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if own[y, x] and (
+                y == 0
+                or y == h - 1
+                or x == 0
+                or x == w - 1
+                or not (own[y - 1, x] and own[y + 1, x] and own[y, x - 1] and own[y, x + 1])
+            ):
+                out[n, 0], out[n, 1] = y, x
+                n += 1
+    return out[:n].copy()
 
 
 def _find_lights(
@@ -173,7 +265,7 @@ def _find_lights(
         h, w = ys.stop - ys.start, xs.stop - xs.start
         mine = np.repeat(np.repeat(grown[cy, cx] == k, cell, axis=0), cell, axis=1)[:h, :w]
         own = _fill_holes((at.counts[ys, xs] >= rate) & mine)
-        radius = float(ndimage.distance_transform_edt(np.pad(own, 1)).max())
+        radius = float(_inscribed_radius(own))
         if radius >= MIN_LIGHT_RADIUS:
             found.append((ys, xs, own, radius))
     return lights, found, at
@@ -299,7 +391,68 @@ def halo_pixels(
     return prior & ~np.repeat(np.repeat(near, cell, axis=0), cell, axis=1)[:height, :width]
 
 
-def _in_band(own: np.ndarray, edge: np.ndarray, py: np.ndarray, px: np.ndarray, reach: float):
+_BRUTE_PAIRS = 1 << 18
+"""Up to this many (open pixel, edge pixel) pairs a light's undecided pixels are measured
+against every edge pixel in a loop; above it (a long stroke, a large light) by a k-d
+tree, whose set-up costs more than the loop for the lamps of a street."""
+
+
+@numba.njit(cache=True, nogil=True)
+def _band_bounds(own, edge, py, px, reach, margin):  # pragma: no cover - compiled
+    """:func:`_in_band`'s answers where the bounds decide them (``out``), the pixels
+    they leave open (``undecided``), each open pixel's squared distance to the light when
+    there are few enough pairs (-1 otherwise)."""
+    h, w = own.shape
+    # the light's pixel nearest its centroid
+    sy = sx = 0.0
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if own[y, x]:
+                sy += y
+                sx += x
+                n += 1
+    my, mx = sy / n, sx / n
+    cy = cx = 0
+    best = np.inf
+    for y in range(h):
+        for x in range(w):
+            if own[y, x] and (y - my) ** 2 + (x - mx) ** 2 < best:
+                best = (y - my) ** 2 + (x - mx) ** 2
+                cy, cx = y, x
+    far = 0
+    for j in range(edge.shape[0]):
+        far = max(far, (edge[j, 0] - cy) ** 2 + (edge[j, 1] - cx) ** 2)
+    spread = np.sqrt(np.float64(far))
+    out = np.zeros(py.size, np.bool_)
+    undecided = np.zeros(py.size, np.bool_)
+    n_open = 0
+    for i in range(py.size):
+        y, x = py[i], px[i]
+        if 0 <= y < h and 0 <= x < w and own[y, x]:
+            continue  # on the light (in a hole of its bright pixels, filled): no band
+        # integer squares, then sqrt: the k-d tree's own arithmetic, so ties agree
+        upper = np.sqrt(np.float64((y - cy) ** 2 + (x - cx) ** 2))
+        lower = upper - spread - 1e-9
+        if upper <= reach and lower > margin:
+            out[i] = True
+        elif lower <= reach and upper > margin:
+            undecided[i] = True
+            n_open += 1
+    d2 = np.full(py.size, -1, np.int64)
+    if n_open * edge.shape[0] <= _BRUTE_PAIRS:
+        for i in range(py.size):
+            if undecided[i]:
+                m = (py[i] - edge[0, 0]) ** 2 + (px[i] - edge[0, 1]) ** 2
+                for j in range(1, edge.shape[0]):
+                    m = min(m, (py[i] - edge[j, 0]) ** 2 + (px[i] - edge[j, 1]) ** 2)
+                d2[i] = m
+    return out, undecided, d2
+
+
+def _in_band(
+    own: np.ndarray, edge: np.ndarray, py: np.ndarray, px: np.ndarray, reach: float
+) -> np.ndarray:
     """Whether pixels ``(py, px)`` (in ``own``'s box) are more than the margin and at
     most ``reach`` from the nearest pixel of the light ``own`` (its ``edge`` pixels
     given), and not on it.
@@ -307,29 +460,20 @@ def _in_band(own: np.ndarray, edge: np.ndarray, py: np.ndarray, px: np.ndarray, 
     The distance to the light's pixel ``c`` nearest its centroid bounds the distance d
     to the light from above, and that minus the light's farthest pixel from ``c`` from
     below: most pixels are decided by the bounds (all but a shell one light wide, for a
-    round light), the rest by a k-d tree of the edge pixels (the nearest light pixel
-    of a point outside is on the edge), with the same answers."""
-    oy, ox = np.nonzero(own)
-    k = np.argmin((oy - oy.mean()) ** 2 + (ox - ox.mean()) ** 2)
-    cy, cx = int(oy[k]), int(ox[k])
-    spread = float(np.sqrt(((edge - (cy, cx)) ** 2).sum(axis=1).max()))
-    # integer squares, then sqrt: the k-d tree's own arithmetic, so ties agree
-    upper = np.sqrt(((py - cy) ** 2 + (px - cx) ** 2).astype(np.float64))
-    lower = upper - spread - 1e-9
-    out = (upper <= reach) & (lower > _MARGIN_PX)
-    open_ = ~out & (lower <= reach) & (upper > _MARGIN_PX)
-    # a pixel of the light (in a hole of its bright pixels, filled) is in no band
-    h, w = own.shape
-    box = (py >= 0) & (py < h) & (px >= 0) & (px < w)
-    mine = np.zeros_like(out)
-    mine[box] = own[py[box], px[box]]
-    out &= ~mine
-    open_ &= ~mine
-    if open_.any():
-        d, _ = cKDTree(edge).query(
-            np.stack([py[open_], px[open_]], axis=1), distance_upper_bound=reach + 1.0
-        )
-        out[open_] = (d > _MARGIN_PX) & (d <= reach)
+    round light), the rest by their distance to every edge pixel (the nearest light
+    pixel of a point outside is on the edge), in a loop or a k-d tree, with the same
+    answers."""
+    out, undecided, d2 = _band_bounds(own, edge, py, px, float(reach), _MARGIN_PX)
+    if undecided.any():
+        d = d2[undecided]
+        if d[0] >= 0:  # measured in the loop
+            d = np.sqrt(d.astype(np.float64))
+        else:
+            d, _ = cKDTree(edge).query(
+                np.stack([py[undecided], px[undecided]], axis=1),
+                distance_upper_bound=reach + 1.0,
+            )
+        out[undecided] = (d > _MARGIN_PX) & (d <= reach)
     return out
 
 
@@ -383,7 +527,7 @@ def in_halo_prior(
         sel = index.box(by, bx)
         if sel.size == 0:
             continue
-        edge = np.argwhere(own & ~ndimage.binary_erosion(own, border_value=0))
+        edge = _edge_pixels(own)
         # each pixel asked once: a pixel map of the box, its marked pixels in order
         w = bx.stop - bx.start
         pid = (y[sel] - by.start) * w + (x[sel] - bx.start)
