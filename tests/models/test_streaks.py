@@ -157,3 +157,32 @@ def test_a_round_light_on_a_spike_of_another_keeps_its_events():
     assert not on[np.isin(ev, lamp)].any()
     beyond = np.isin(ev, spikes) & (ev["x"] > 150)
     assert beyond.any() and on[beyond].all()
+
+
+def test_the_compiled_angle_runs_are_the_polar_bins_filled_and_followed(rng):
+    # _angle_runs bins, fills and follows in one loop; the same from the numpy steps
+    from edeflare.models.streaks import (
+        ANGLE_BINS,
+        FILL_SHARE,
+        MAX_GAP_BINS,
+        RADIAL_BIN_PX,
+        _angle_runs,
+        _polar_bins,
+    )
+
+    cy, cx, start, n_rings, reach = 200.4, 310.7, 14.0, 40, 170.0
+    r = rng.uniform(0, 180, 6000)
+    a = rng.choice([0.3, 0.3 + np.pi, 2.0], 6000) + rng.normal(0, 0.02, 6000)
+    pix = np.unique(np.stack([cy + r * np.sin(a), cx + r * np.cos(a)]).astype(np.int64), axis=1)
+    sy, sx = pix  # sorted by row, as the prior's saturated pixels are
+    run = _angle_runs(sy, sx, 0, sy.size, cy, cx, reach, start, n_rings, 8.0)
+    near = np.abs(sx - cx) <= reach
+    _, ring, tb = _polar_bins(sx[near] - cx, sy[near] - cy, start, n_rings)
+    hot = np.bincount(tb * n_rings + ring, minlength=ANGLE_BINS * n_rings)
+    mid = start + RADIAL_BIN_PX * (np.arange(n_rings) + 0.5)
+    area = np.tile(2 * np.pi / ANGLE_BINS * RADIAL_BIN_PX * mid, ANGLE_BINS)
+    filled = ((hot >= FILL_SHARE * area) | (area < 1.0)).reshape(ANGLE_BINS, n_rings)
+    np.testing.assert_array_equal(run, _runs(filled, MAX_GAP_BINS))
+    assert run.max() == n_rings and (run > 20).sum() >= 3  # the three spikes, to the end
+    # too few saturated pixels for a run of 60 rings: none followed
+    assert not _angle_runs(sy, sx, 0, 30, cy, cx, reach, start, n_rings, 200.0).any()

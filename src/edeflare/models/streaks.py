@@ -138,6 +138,62 @@ def _spikes(run: np.ndarray, need: float, room: np.ndarray) -> np.ndarray:
     return spike & (partner | unseen)
 
 
+@numba.njit(cache=True, nogil=True)
+def _centre(own, y0, x0):  # pragma: no cover - compiled
+    """A light's centre (the mean of its pixels ``own``, its box at ``(y0, x0)``) and its
+    farthest pixel's distance from it."""
+    sy = sx = n = 0  # integer sums: the mean is exact, in any order
+    for y in range(own.shape[0]):
+        for x in range(own.shape[1]):
+            if own[y, x]:
+                sy += y
+                sx += x
+                n += 1
+    cy, cx = sy / n + y0, sx / n + x0
+    edge = 0.0
+    for y in range(own.shape[0]):
+        for x in range(own.shape[1]):
+            if own[y, x]:
+                edge = max(edge, math.hypot(y + y0 - cy, x + x0 - cx))
+    return cy, cx, edge
+
+
+@numba.njit(cache=True, nogil=True)
+def _angle_runs(sat_y, sat_x, lo, hi, cy, cx, reach, start, n_rings, need):  # pragma: no cover
+    """Each angle's run (rings) from the saturated pixels ``sat_y[lo:hi]`` (those in the
+    rows within ``reach`` of the centre ``(cy, cx)``): the polar bins, their filling and
+    the runs in one pass (numpy's temporaries per light were most of a street of lamps'
+    time). All zero when too few saturated pixels fall in the rings for a run of
+    ``need`` rings: a spike's run fills at least one ring in ``MAX_GAP_BINS + 1``, each
+    with a saturated pixel, but for the first two, which can be under a pixel's area (a
+    lamp over a dark scene has none)."""
+    hot = np.zeros((ANGLE_BINS, n_rings), np.int64)
+    n = 0
+    for i in range(lo, hi):
+        dy, dx = sat_y[i] - cy, sat_x[i] - cx
+        if abs(sat_x[i] - cx) > reach:
+            continue
+        ring = math.floor((math.hypot(dx, dy) - start) / RADIAL_BIN_PX)
+        if ring < 0 or ring >= n_rings:
+            continue
+        theta = math.atan2(dy, dx)
+        tb = np.int64((theta + math.pi) * (ANGLE_BINS / (2 * math.pi))) % ANGLE_BINS
+        hot[tb, ring] += 1
+        n += 1
+    if n < math.ceil(need / (MAX_GAP_BINS + 1)) - 2:
+        return np.zeros(ANGLE_BINS, np.int64)
+    # a bin is filled where saturated pixels cover at least FILL_SHARE of its area (the
+    # annulus sector's); a bin under a pixel's area (next to a small light) neither
+    # fills nor breaks a run
+    filled = np.empty((ANGLE_BINS, n_rings), np.bool_)
+    sector = 2 * math.pi / ANGLE_BINS * RADIAL_BIN_PX
+    for r in range(n_rings):
+        area = sector * (start + RADIAL_BIN_PX * (r + 0.5))
+        for a in range(ANGLE_BINS):
+            filled[a, r] = hot[a, r] >= FILL_SHARE * area or area < 1.0
+    return _runs(filled, MAX_GAP_BINS)
+
+
 def _polar_bins(
     dx: np.ndarray, dy: np.ndarray, start: float, n_rings: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -197,39 +253,20 @@ def in_streak_prior(
     # pixels with events are judged (not each event) where one is found
     pixel, n_px = at.pixel, at.counts.ravel()
     sat_y, sat_x = np.divmod(np.flatnonzero(n_px >= MIN_PIXEL_EVENTS), width)
-    any_y, any_x = np.divmod(np.flatnonzero(n_px), width)
+    any_y = any_x = None  # the pixels with events: wanted only once a spike is found
     on_spike = np.zeros(width * height, dtype=bool)
     angle = (np.arange(ANGLE_BINS) + 0.5) / ANGLE_BINS * 2 * math.pi - math.pi
     cos, sin = np.cos(angle), np.sin(angle)
     for ys, xs, own, radius in found:
-        py, px = np.nonzero(own)
-        cy, cx = py.mean() + ys.start, px.mean() + xs.start
-        edge = float(np.hypot(py + ys.start - cy, px + xs.start - cx).max())
+        cy, cx, edge = _centre(own, ys.start, xs.start)
         reach = STREAK_EXTENT * radius
         start = edge + 2.0 + SKIP_RADII * radius
         n_rings = math.ceil((reach - start) / RADIAL_BIN_PX)
         if n_rings < 2:
             continue
-        near_y, near_x = _near(sat_y, sat_x, cy, cx, reach)
-        _, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
         need = max(MIN_LENGTH_RADII * radius, MIN_LENGTH_PX) / RADIAL_BIN_PX
-        # a spike's run fills at least one ring in MAX_GAP_BINS + 1, each with a saturated
-        # pixel, but for the first two, which can be under a pixel's area: a light with
-        # fewer saturated pixels around it has none (a lamp over a dark scene)
-        if ring.size < math.ceil(need / (MAX_GAP_BINS + 1)) - 2:
-            continue
-        # a bin is filled where saturated pixels cover at least FILL_SHARE of its area
-        # (the annulus sector's); a bin under a pixel's area (next to a small light)
-        # neither fills nor breaks a run
-        hot = np.bincount(tb * n_rings + ring, minlength=ANGLE_BINS * n_rings)
-        mid = start + RADIAL_BIN_PX * (np.arange(n_rings) + 0.5)
-        area = np.tile(2 * math.pi / ANGLE_BINS * RADIAL_BIN_PX * mid, ANGLE_BINS)
-        filled = (hot >= FILL_SHARE * area) | (area < 1.0)
-        # only the angles with a filled ring are followed out (the others' run is 0)
-        filled = filled.reshape(ANGLE_BINS, n_rings)
-        can = filled.any(axis=1)
-        run = np.zeros(ANGLE_BINS, dtype=np.int64)
-        run[can] = _runs(filled[can], MAX_GAP_BINS)
+        lo, hi = np.searchsorted(sat_y, [cy - reach, cy + reach + 1])
+        run = _angle_runs(sat_y, sat_x, lo, hi, cy, cx, reach, start, n_rings, need)
         if run.max() < need:
             continue
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -241,6 +278,8 @@ def in_streak_prior(
             continue
         # the pixels with events out to the longest spike's end
         far = start + RADIAL_BIN_PX * float(run[spike].max())
+        if any_y is None:
+            any_y, any_x = np.divmod(np.flatnonzero(n_px), width)
         near_y, near_x = _near(any_y, any_x, cy, cx, far)
         ok, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
         hit = spike[tb] & (ring < run[tb])
