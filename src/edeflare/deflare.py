@@ -336,16 +336,21 @@ class _WindowStreamer(Streamer):
                 end_t = last
             else:  # hold the window of the last event: it may be the stream's last
                 until_us = min(until_us, last)
-        while self.pending.size:
-            if self.start is None or self.pending["t"][0] >= self.start + self.window_us:
-                self.start = window_start_for(int(self.pending["t"][0]), self.window_us)
+        # the times once, contiguous: searching the records' strided field copies it
+        # on every call, quadratic in a long in-memory stream
+        t = np.ascontiguousarray(self.pending["t"])
+        i = 0
+        while i < t.size:
+            if self.start is None or t[i] >= self.start + self.window_us:
+                self.start = window_start_for(int(t[i]), self.window_us)
             end = self.start + self.window_us
             if until_us is not None and end > until_us:
                 break
-            k = int(np.searchsorted(self.pending["t"], end, side="left"))
-            batch.append((self.start, self.pending[:k]))
-            self.pending = self.pending[k:]
+            k = int(np.searchsorted(t, end, side="left"))
+            batch.append((self.start, self.pending[i:k]))
+            i = k
             self.start = end
+        self.pending = self.pending[i:]
         if not batch or self.first_t is None:
             return _EMPTY.copy()
         out = self.transform(batch, (self.first_t, end_t))
@@ -394,7 +399,7 @@ class _TwoViewStreamer(Streamer):
         """The view's complete windows not yet judged, in network batches."""
         w, delay = self.window_us, self.delays[view]
         events = self.pending[self.done[view].size :]
-        t = events["t"]
+        t = np.ascontiguousarray(events["t"])  # searched once per window: no strided copies
         windows = []
         i = 0
         while i < events.size:

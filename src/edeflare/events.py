@@ -511,23 +511,30 @@ def iter_chunk_windows(
             return
         pending = concat_events([pending, chunk]) if pending.size else chunk
         last_t = int(pending["t"][-1])
-        # Windows ending at or before the newest timestamp are complete.
+        # Windows ending at or before the newest timestamp are complete. The times
+        # are copied once per chunk: searching the records' strided field copies it
+        # on every call, quadratic in a long in-memory stream.
+        t = np.ascontiguousarray(pending["t"])
+        i = 0
         while cur + window_us <= last_t and (end_us is None or cur < end_us):
-            k = int(np.searchsorted(pending["t"], cur + window_us, side="left"))
-            lo = int(np.searchsorted(pending["t"][:k], cur, side="left"))
+            k = int(np.searchsorted(t, cur + window_us, side="left"))
+            lo = int(np.searchsorted(t[i:k], cur, side="left")) + i
             yield cur, pending[lo:k]
-            pending = pending[k:]
+            i = k
             cur += window_us
+        pending = pending[i:]
     if cur is None:
         return
     stop = end_us
     if stop is None:
         stop = int(pending["t"][-1]) + 1 if pending.size else cur
+    t = np.ascontiguousarray(pending["t"])
+    i = 0
     while cur < stop:
-        k = int(np.searchsorted(pending["t"], cur + window_us, side="left"))
-        lo = int(np.searchsorted(pending["t"][:k], cur, side="left"))
+        k = int(np.searchsorted(t, cur + window_us, side="left"))
+        lo = int(np.searchsorted(t[i:k], cur, side="left")) + i
         yield cur, pending[lo:k]
-        pending = pending[k:]
+        i = k
         cur += window_us
 
 
