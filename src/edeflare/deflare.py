@@ -542,6 +542,17 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    light_free_shift: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--light-free-shift",
+            "mask models: raise the keep logit by this much in the windows without a light "
+            "(flare needs a bright source; 0: off)",
+            metavar="LOGIT",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     runtime: str = dataclasses.field(
         default="auto",
         metadata=cli_option(
@@ -725,8 +736,9 @@ class ModelMethod(Method):
         ghost_shift: float | None = None,
         halo_shift: float | None = None,
         streak_shift: float | None = None,
+        light_free_shift: float | None = None,
     ) -> None:
-        from .models.ghosts import check_ghost_shift
+        from .models.ghosts import check_ghost_shift, check_logit_shift
         from .models.halos import check_halo_shift
         from .models.infer import DECODERS, RUNTIMES, resolve_weights
         from .models.streaks import check_streak_shift
@@ -744,6 +756,8 @@ class ModelMethod(Method):
             halo_shift = check_halo_shift(halo_shift)
         if streak_shift is not None:
             streak_shift = check_streak_shift(streak_shift)
+        if light_free_shift is not None:
+            light_free_shift = check_logit_shift(light_free_shift, "light_free_shift")
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -781,6 +795,7 @@ class ModelMethod(Method):
             ghost_shift=ghost_shift,
             halo_shift=halo_shift,
             streak_shift=streak_shift,
+            light_free_shift=light_free_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
         # shared by every stream of this method: a benchmark opens one per sequence.
@@ -803,6 +818,7 @@ class ModelMethod(Method):
                 ghost_shift=p["ghost_shift"],
                 halo_shift=p["halo_shift"],
                 streak_shift=p["streak_shift"],
+                light_free_shift=p["light_free_shift"],
             )
         deflarer = self._deflarers[seed]
         size = check_sensor_size(sensor_size)

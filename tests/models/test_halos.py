@@ -122,9 +122,10 @@ def test_a_prior_shift_lowers_exactly_the_logits_inside_the_prior(name, prior, l
     inside = prior(ev, size, 20_000)
     assert 0 < inside.sum() < len(ev)
     np.testing.assert_allclose(plain - shifted, 2.5 * inside, atol=1e-5)
-    # the method keeps a subset, and drops more only inside the prior
-    kept = create_method("model", **{name: 0.0})(ev, size, rng=0)
-    kept_shifted = create_method("model", **{name: 6.0})(ev, size, rng=0)
+    # the method keeps a subset, and drops more only inside the prior (one windowing: the
+    # second's windows hold parts of this one, with priors of their own)
+    kept = create_method("model", phase_shift_us=0, **{name: 0.0})(ev, size, rng=0)
+    kept_shifted = create_method("model", phase_shift_us=0, **{name: 6.0})(ev, size, rng=0)
     assert np.isin(kept_shifted, kept).all() and len(kept_shifted) < len(kept)
     lost = kept[~np.isin(kept, kept_shifted)]
     assert prior(ev, size, 20_000)[np.isin(ev, lost)].all()
@@ -277,3 +278,37 @@ def test_the_priors_of_a_window_share_its_lights_and_no_other_window_does(rng):
         in_halo_prior(moved, SIZE, 20_000),
     )
     assert (in_halo_prior(moved, SIZE, 20_000) != first).any()
+
+
+def test_a_window_without_a_light_has_its_logits_raised_by_the_light_free_shift(rng):
+    weights = bundled_weights()
+    dark = random_events(rng, 300, SIZE, t0=0, span_us=20_000)
+    lit = merge_events(_block(40, 20), random_events(rng, 300, SIZE, t0=0, span_us=20_000))
+    plain = ModelDeflarer(weights, light_free_shift=0.0)
+    raised = ModelDeflarer(weights, light_free_shift=1.5)
+    batch = [(0, dark), (0, lit)]
+    (d0, l0), (d1, l1) = plain.window_logits(batch, SIZE), raised.window_logits(batch, SIZE)
+    np.testing.assert_allclose(d1 - d0, 1.5, atol=1e-9)  # every event, by the shift
+    np.testing.assert_array_equal(l1, l0)  # a light in the window: no change
+    with pytest.raises(ParameterError, match="light_free_shift"):
+        ModelDeflarer(weights, light_free_shift=-1.0)
+    assert create_method("model").params["light_free_shift"] is None  # the card's: 2
+
+
+def test_a_light_in_the_part_of_a_window_the_stream_covers_is_found():
+    # a stream that ends 5 ms into its last window: its light fires 4 events per pixel in
+    # those 5 ms (0.8 per ms; 0.2 over the whole window, under the light rate of 0.25)
+    from edeflare.models.ghosts import covered_us
+
+    ev = _block(40, 20, per_pixel=4, t0=15_000)
+    ev["t"] = 15_000 + (ev["t"] - 15_000) // 4  # squeezed into 15-20 ms
+    part = ev[ev["t"] >= 15_000]
+    assert covered_us(part, 15_000, 20_000) == 5_000
+    assert not light_cells(part, SIZE, 20_000).any() and light_cells(part, SIZE, 5_000).any()
+    weights = bundled_weights()
+    far = make_events([16_000, 17_000], [60, 62], [24, 26], [1, 0])  # in the halo
+    window = merge_events(part, far)
+    logits = ModelDeflarer(weights, halo_shift=0.0).window_logits([(15_000, window)], SIZE)[0]
+    shifted = ModelDeflarer(weights, halo_shift=2.0).window_logits([(15_000, window)], SIZE)[0]
+    in_far = np.isin(window, far)
+    np.testing.assert_allclose((logits - shifted)[in_far], 2.0, atol=1e-9)

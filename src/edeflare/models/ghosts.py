@@ -40,6 +40,7 @@ __all__ = [
     "LIGHT_RATE",
     "check_ghost_shift",
     "check_logit_shift",
+    "covered_us",
     "ghost_cells",
     "in_ghost_prior",
     "light_cells",
@@ -63,13 +64,40 @@ shift of 1 it keeps all of the simulated ghosts the ungated prior drops (0.873 a
 65.1 % without the prior)."""
 
 
+def covered_us(events: np.ndarray, start_us: int, window_us: int) -> int:
+    """How much of a window its events cover: the time the lights' rates are counted over.
+
+    A window at a stream's start or end (or one of the second windowing, which starts
+    before the stream) holds only part of its span: over the whole window, a light that
+    fired through the part would seem dim and go unseen, and with it every prior. The
+    covered part runs from the later of the window's start and its first event to the
+    earlier of its end and its last event; at least a quarter of the window, so that a
+    burst of a few events is not a light.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([1_000, 4_999], [0, 1], [0, 0], [1, 1])  # a stream ending at 5 ms
+    >>> covered_us(ev, 0, 20_000), covered_us(ev[:1], 0, 20_000), covered_us(ev[:0], 0, 20_000)
+    (5000, 5000, 20000)
+    >>> covered_us(make_events([0, 19_999], [0, 1], [0, 0], [1, 1]), 0, 20_000)
+    20000
+    """
+    if events.size == 0:
+        return int(window_us)
+    lo = max(int(start_us), int(events["t"][0]))
+    hi = min(int(start_us) + int(window_us), int(events["t"][-1]) + 1)
+    return int(min(window_us, max(hi - lo, window_us // 4)))
+
+
 def light_cells(
     events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
 ) -> np.ndarray:
     """The cells (``cell`` x ``cell`` pixels) of a window that are lights.
 
     A cell is a light when it fires at least :data:`LIGHT_RATE` events per pixel
-    and millisecond over the window.
+    and millisecond over ``window_us`` (the window, or the part of it the events cover:
+    :func:`covered_us`).
 
     Examples
     --------

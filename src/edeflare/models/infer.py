@@ -37,7 +37,13 @@ from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
-from .ghosts import check_ghost_shift, in_ghost_prior, light_cells
+from .ghosts import (
+    check_ghost_shift,
+    check_logit_shift,
+    covered_us,
+    in_ghost_prior,
+    light_cells,
+)
 from .halos import check_halo_shift, in_halo_prior
 from .streaks import check_streak_shift, in_streak_prior
 from .weights import ModelCard, load_model
@@ -182,6 +188,12 @@ class ModelDeflarer:
         on a diffraction spike of its window's lights (:mod:`edeflare.models.streaks`:
         saturated radial runs in opposite pairs). Default: the model card's (0, off,
         unless the card says otherwise).
+    light_free_shift : float, optional
+        Mask models: how much higher (in logit units) the keep logit of every event is
+        in a window with no light (no cell passing
+        :func:`~edeflare.models.ghosts.light_cells`): flare needs a bright source, and
+        without one what the network would drop is more likely scene. Default: the
+        model card's (0, off, unless the card says otherwise).
 
     Attributes
     ----------
@@ -207,6 +219,7 @@ class ModelDeflarer:
         ghost_shift: float | None = None,
         halo_shift: float | None = None,
         streak_shift: float | None = None,
+        light_free_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -255,7 +268,9 @@ class ModelDeflarer:
         self.halo_shift = check_halo_shift(shift)
         shift = card.streak_shift if streak_shift is None else streak_shift
         self.streak_shift = check_streak_shift(shift)
-        for name in ("ghost_shift", "halo_shift", "streak_shift"):
+        shift = card.light_free_shift if light_free_shift is None else light_free_shift
+        self.light_free_shift = check_logit_shift(shift, "light_free_shift")
+        for name in ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift"):
             if getattr(self, name) and not isinstance(model, FlareMaskNet):
                 raise EdeflareError(
                     f"{weights}: {name} needs a mask model, not a {card.preset} (voxel-to-voxel)"
@@ -401,16 +416,23 @@ class ModelDeflarer:
             )
             for (start, events), lg in zip(batch, logits, strict=True)
         ]
-        for (_, events), v in zip(batch, out, strict=True):
-            if not (self.ghost_shift or self.halo_shift or self.streak_shift):
+        for (start, events), v in zip(batch, out, strict=True):
+            if not (
+                self.ghost_shift or self.halo_shift or self.streak_shift or self.light_free_shift
+            ):
                 continue
-            lights = light_cells(events, sensor_size, w)  # counted once for all priors
+            # the lights' rates over the part of the window the stream covers
+            span = covered_us(events, start, w)
+            lights = light_cells(events, sensor_size, span)  # counted once for all priors
+            if not lights.any():
+                v += self.light_free_shift  # flare needs a source: keep more without one
+                continue
             if self.ghost_shift:
-                v -= self.ghost_shift * in_ghost_prior(events, sensor_size, w, lights=lights)
+                v -= self.ghost_shift * in_ghost_prior(events, sensor_size, span, lights=lights)
             if self.halo_shift:
-                v -= self.halo_shift * in_halo_prior(events, sensor_size, w, lights=lights)
+                v -= self.halo_shift * in_halo_prior(events, sensor_size, span, lights=lights)
             if self.streak_shift:
-                v -= self.streak_shift * in_streak_prior(events, sensor_size, w, lights=lights)
+                v -= self.streak_shift * in_streak_prior(events, sensor_size, span, lights=lights)
         return out
 
     def _run_mask(

@@ -68,6 +68,7 @@ class ModelCard:
     ghost_shift: float = 0.0  # mask models: keep logit lowered in the ghost prior (ghosts.py)
     halo_shift: float = 0.0  # mask models: keep logit lowered in the halo prior (halos.py)
     streak_shift: float = 0.0  # mask models: keep logit lowered on diffraction spikes (streaks.py)
+    light_free_shift: float = 0.0  # mask models: keep logit raised in windows without a light
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""
