@@ -253,19 +253,15 @@ def in_ghost_prior(
     inside = cells[events["y"] // cell, events["x"] // cell]
     if max_neighbours is None or not inside.any():
         return inside
-    return inside & (_neighbourhood_counts(events, inside) <= max_neighbours)
-
-
-def _neighbourhood_counts(events: np.ndarray, where: np.ndarray) -> np.ndarray:
-    """Per event, the window's events in its 3x3 neighbourhood (itself included); counted
-    for the events of ``where`` only (0 elsewhere), on their bounding box plus one pixel."""
-    return _box_counts(events["x"], events["y"], where)
+    return inside & (_neighbourhood_counts(events["x"], events["y"], inside) <= max_neighbours)
 
 
 @numba.njit(cache=True, nogil=True)
-def _box_counts(x, y, where):  # pragma: no cover - compiled
-    """:func:`_neighbourhood_counts` in two passes (numba: numpy needed a dozen
-    temporaries and nine gathers over the gated events, ten times the time)."""
+def _neighbourhood_counts(x, y, where):  # pragma: no cover - compiled
+    """Per event (pixel ``x``, ``y``), the window's events in its 3x3 neighbourhood
+    (itself included); counted for the events of ``where`` only (0 elsewhere), on their
+    bounding box plus one pixel. Two compiled passes: numpy needed a dozen temporaries
+    and nine gathers over the gated events, ten times the time."""
     x0 = y0 = np.iinfo(np.int64).max
     x1 = y1 = -1
     for i in range(x.size):

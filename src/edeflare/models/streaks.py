@@ -171,7 +171,7 @@ def _angle_runs(sat_y, sat_x, lo, hi, cy, cx, reach, start, n_rings, need):  # p
     n = 0
     for i in range(lo, hi):
         dy, dx = sat_y[i] - cy, sat_x[i] - cx
-        if abs(sat_x[i] - cx) > reach:
+        if abs(dx) > reach:
             continue
         ring = math.floor((math.hypot(dx, dy) - start) / RADIAL_BIN_PX)
         if ring < 0 or ring >= n_rings:
@@ -206,12 +206,18 @@ def _polar_bins(
     return ok, ring[ok], tb
 
 
+def _rows(ys: np.ndarray, cy: float, reach: float) -> tuple[int, int]:
+    """The slice of ``ys`` (sorted) within ``reach`` rows of ``cy``."""
+    lo, hi = np.searchsorted(ys, [cy - reach, cy + reach + 1])
+    return int(lo), int(hi)
+
+
 def _near(
     ys: np.ndarray, xs: np.ndarray, cy: float, cx: float, reach: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The pixels ``(ys, xs)`` (sorted by row) in the square of half-side ``reach``
     around ``(cy, cx)``."""
-    lo, hi = np.searchsorted(ys, [cy - reach, cy + reach + 1])
+    lo, hi = _rows(ys, cy, reach)
     keep = np.abs(xs[lo:hi] - cx) <= reach
     return ys[lo:hi][keep], xs[lo:hi][keep]
 
@@ -265,8 +271,9 @@ def in_streak_prior(
         if n_rings < 2:
             continue
         need = max(MIN_LENGTH_RADII * radius, MIN_LENGTH_PX) / RADIAL_BIN_PX
-        lo, hi = np.searchsorted(sat_y, [cy - reach, cy + reach + 1])
-        run = _angle_runs(sat_y, sat_x, lo, hi, cy, cx, reach, start, n_rings, need)
+        run = _angle_runs(
+            sat_y, sat_x, *_rows(sat_y, cy, reach), cy, cx, reach, start, n_rings, need
+        )
         if run.max() < need:
             continue
         with np.errstate(divide="ignore", invalid="ignore"):
