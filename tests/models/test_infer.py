@@ -12,7 +12,7 @@ from edeflare.errors import EdeflareError
 from edeflare.events import iter_time_windows, make_events
 from edeflare.io import read_events, write_events
 from edeflare.models import create_model
-from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.infer import ModelDeflarer, _full_precision, bundled_weights
 from edeflare.models.weights import ModelCard, WeightsError, save_model
 from edeflare.voxel import decode_keep, encode
 
@@ -227,3 +227,17 @@ def test_warm_up_changes_no_output(model, rng):
     assert [s for s, _ in a] == [s for s, _ in b]
     assert all(same_events(x, y) for (_, x), (_, y) in zip(a, b, strict=True))
     assert 0 < sum(e.size for _, e in b) < events.size  # a real model, really deciding
+
+
+def test_cuda_networks_run_in_full_precision_and_restore_the_flags():
+    # On an H200, cuDNN's defaults moved the default model's logits by up to 6e-3 from
+    # the CPU's, and 2-16 events of a real recording changed side of the threshold
+    # (experiments/gpu-default). The flags are process-wide: they must come back.
+    cudnn = torch.backends.cudnn
+    before = (cudnn.enabled, cudnn.benchmark, cudnn.deterministic, cudnn.allow_tf32)
+    with _full_precision(torch.device("cuda")):
+        assert (cudnn.deterministic, cudnn.allow_tf32, cudnn.benchmark) == (True, False, False)
+        assert cudnn.enabled == before[0]
+    assert (cudnn.enabled, cudnn.benchmark, cudnn.deterministic, cudnn.allow_tf32) == before
+    with _full_precision(torch.device("cpu")):  # elsewhere: nothing changes
+        assert (cudnn.enabled, cudnn.benchmark, cudnn.deterministic, cudnn.allow_tf32) == before
