@@ -6,6 +6,7 @@ import torch
 
 from edeflare.events import make_events
 from edeflare.models import create_model
+from edeflare.models import flaremask as fm
 from edeflare.models.flaremask import FlareMaskNet, event_features, event_keep_mask
 from edeflare.voxel import encode
 
@@ -115,6 +116,31 @@ def test_pixel_refinement_starts_as_the_identity_and_its_event_path_equals_the_d
         np.testing.assert_array_equal(keep, dense > np.log(threshold / (1 - threshold)) - np.log(3))
     with pytest.raises(ValueError, match="needs the sensor size"):
         event_keep_mask(coarse[0].numpy(), ev, 0, 20_000, 8, pixel_params=params)
+
+
+@pytest.mark.parametrize("side", [60, 12])
+def test_event_logits_equal_the_dense_paths_whether_pixels_repeat_or_not(side):
+    # side 60: most events fire a pixel of their own (the rings summed per event);
+    # side 12: nearly all repeat one (each pixel's rings summed once, then read back)
+    size = (64, 48)
+    rng = np.random.default_rng(2)
+    n = 2500
+    x, y = rng.integers(2, 2 + side, n), rng.integers(2, 2 + min(side, 44), n)
+    ev = make_events(np.sort(rng.integers(0, 20_000, n)), x, y, (7 * x + 3 * y) % 2)
+    repeats = 1 - np.unique(y * size[0] + x).size / n
+    assert (repeats < fm._RING_MEMO_REPEATS) == (side == 60)
+    net = _pixel_net(3)
+    grid = torch.from_numpy(encode(ev, size, 0, 20_000, 8))[None, None].float()
+    with torch.no_grad():
+        full = net.pixel_logits(grid)[0].numpy()
+        coarse = net.logits(torch.from_numpy(event_features(ev, size, 0, 20_000, 8, 8))[None])
+    channel = ev["t"] * 8 // 20_000 + 8 * (1 - ev["p"].astype(np.int64))
+    got = fm.event_keep_logits(
+        coarse[0].numpy(), ev, 0, 20_000, 8, pixel_params=net.pixel_params(), sensor_size=size
+    )
+    np.testing.assert_allclose(got, full[channel, ev["y"], ev["x"]], rtol=0, atol=1e-4)
+    on, total, _, _ = fm._frames(*size)
+    assert not on.any() and not total.any()  # the frames are left zeroed for the next window
 
 
 def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():
