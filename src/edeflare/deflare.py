@@ -525,7 +525,8 @@ class ModelParams:
         metadata=cli_option(
             "--halo-shift",
             "mask models: lower the keep logit by this much in the halo of the window's lights "
-            "(from just outside each light to six of its radii; 0: off)",
+            "(from just outside each light to six of its radii, at most a fifth of the sensor's "
+            "width; 0: off)",
             metavar="LOGIT",
             type=float,
             default_text="the model card's",

@@ -13,6 +13,7 @@ from edeflare.models import create_model
 from edeflare.models.ghosts import in_ghost_prior, light_cells
 from edeflare.models.halos import (
     HALO_EXTENT,
+    HALO_MAX_REACH,
     MIN_LIGHT_RADIUS,
     halo_pixels,
     in_halo_prior,
@@ -21,7 +22,7 @@ from edeflare.models.halos import (
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.weights import ModelCard, save_model
 
-SIZE = (96, 64)
+SIZE = (192, 64)  # wide enough that no halo here meets HALO_MAX_REACH (38 px)
 
 
 def _block(x0: int, y0: int, side: int = 10, per_pixel: int = 20, t0: int = 0) -> np.ndarray:
@@ -38,7 +39,7 @@ def _block(x0: int, y0: int, side: int = 10, per_pixel: int = 20, t0: int = 0) -
 
 def test_a_light_is_its_bright_pixels_and_its_radius_the_largest_disc_inside():
     labels, radii = light_pixels(_block(40, 20), SIZE, 20_000)
-    expected = np.zeros((64, 96), dtype=int)
+    expected = np.zeros((64, 192), dtype=int)
     expected[20:30, 40:50] = 1
     np.testing.assert_array_equal(labels, expected)
     assert radii.tolist() == [5.0]  # the block's centre pixels are 5 px from outside it
@@ -80,12 +81,12 @@ def test_a_hot_pixel_is_no_light_but_a_3x3_block_is():
 def test_the_halo_is_the_band_from_the_rim_to_five_radii_beyond_the_light():
     p = halo_pixels(_block(40, 20), SIZE, 20_000)
     # each pixel's distance to the nearest pixel of the block (x 40-49, y 20-29)
-    yy, xx = np.mgrid[0:64, 0:96]
+    yy, xx = np.mgrid[0:64, 0:192]
     d = np.hypot(np.clip(xx, 40, 49) - xx, np.clip(yy, 20, 29) - yy)
     # the light's cells are those its block fills at the rate: x 40-47, y 16-31 (cells
     # x 5, y 2-3; the column x 48-55 holds too few); out with the 8 cells around each:
     # cells x 4-6, y 1-4 -> pixels x 32-55, y 8-39
-    near = np.zeros((64, 96), dtype=bool)
+    near = np.zeros((64, 192), dtype=bool)
     near[8:40, 32:56] = True
     reach = (HALO_EXTENT - 1) * 5.0
     np.testing.assert_array_equal(p, (d > 2.0) & (d <= reach) & ~near)
@@ -94,6 +95,25 @@ def test_the_halo_is_the_band_from_the_rim_to_five_radii_beyond_the_light():
     assert wider[24, 84] and not p[24, 84]
     with pytest.raises(ValueError, match="extent must be > 1"):
         halo_pixels(_block(40, 20), SIZE, 20_000, extent=1.0)
+
+
+def test_a_large_lights_halo_stops_at_a_fifth_of_the_sensors_width(rng):
+    # a 20x20 block (radius 10) would reach 50 px beyond itself; on a 160 px wide sensor
+    # the band stops 32 px out. Both ways of measuring the band agree on it.
+    size = (160, 120)
+    assert HALO_MAX_REACH * size[0] == 32.0
+    light = _block(30, 50, side=20, per_pixel=20)
+    p = halo_pixels(light, size, 20_000)
+    assert light_pixels(light, size, 20_000)[1].tolist() == [10.0]
+    assert p[60, 49 + 32] and not p[60, 49 + 33]  # the block's right edge is x = 49
+    assert not p[60, 49 + 45]
+    ev = merge_events(light, random_events(rng, 5_000, size, t0=0, span_us=20_000))
+    inside = in_halo_prior(ev, size, 20_000)
+    np.testing.assert_array_equal(inside, halo_pixels(ev, size, 20_000)[ev["y"], ev["x"]])
+    assert not inside[(ev["x"] > 49 + 32) & (ev["y"] >= 50) & (ev["y"] < 70)].any()
+    # on a sensor twice as wide, the same light reaches its five radii
+    wide = halo_pixels(light, (320, 120), 20_000)
+    assert wide[60, 49 + 45] and wide[60, 49 + 50] and not wide[60, 49 + 51]
 
 
 def test_in_halo_prior_reads_each_events_pixel():

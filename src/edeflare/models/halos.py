@@ -16,7 +16,8 @@ that rate themselves), and its radius is that of the largest disc inside it: for
 still light, the disc's radius; for a light that moves during the window and sweeps a
 stroke, half the stroke's width, the radius of the light itself. The prior is the
 band from ``margin_px`` outside the light's pixels to ``(extent - 1)`` radii beyond
-them (for a disc: out to ``extent`` radii from its centre), leaving out the light's own
+them (for a disc: out to ``extent`` radii from its centre), but never farther than
+:data:`HALO_MAX_REACH` of the sensor's width beyond them, leaving out the light's own
 cells and the eight around each.
 :class:`~edeflare.models.infer.ModelDeflarer` lowers the keep logit of the events in
 it by the card's ``halo_shift``: an event there is dropped only where the network
@@ -39,6 +40,7 @@ from .ghosts import LIGHT_RATE, check_logit_shift, light_cells
 
 __all__ = [
     "HALO_EXTENT",
+    "HALO_MAX_REACH",
     "MIN_LIGHT_RADIUS",
     "check_halo_shift",
     "halo_pixels",
@@ -49,6 +51,11 @@ __all__ = [
 HALO_EXTENT = 6.0
 """How far a halo reaches, in source radii from the source's centre: real sensors fire
 scattered-light pixels 2-6 radii out (:mod:`edeflare.sim.sensing`)."""
+
+HALO_MAX_REACH = 0.2
+"""The farthest a halo reaches beyond its light's pixels, as a share of the sensor's
+width, however large the light (a 40 px lamp at 346x260 would otherwise reach 200 px,
+the whole frame)."""
 
 MIN_LIGHT_RADIUS = 2.0
 """The thinnest light, in its radius: a solid 3x3 block. A hot pixel firing tens of
@@ -311,6 +318,12 @@ def light_pixels(
     return labels, np.array([r for *_, r in found])
 
 
+def _reach(radius: float, extent: float, width: int) -> float:
+    """How far a light's halo band reaches beyond its pixels: ``(extent - 1)`` of its
+    radii, at most :data:`HALO_MAX_REACH` of the sensor's width."""
+    return min((extent - 1.0) * radius, HALO_MAX_REACH * width)
+
+
 def _bands(
     events: np.ndarray,
     sensor_size: SensorSize,
@@ -326,7 +339,7 @@ def _bands(
     lights, found, _ = _lights(events, sensor_size, window_us, cell)
     bands = []
     for ys, xs, own, radius in found:
-        reach = (extent - 1.0) * radius
+        reach = _reach(radius, extent, width)
         pad = math.ceil(reach) + 1
         by = slice(max(ys.start - pad, 0), min(ys.stop + pad, height))
         bx = slice(max(xs.start - pad, 0), min(xs.stop + pad, width))
@@ -362,7 +375,8 @@ def halo_pixels(
         Cell size of the light test, in pixels.
     extent : float
         How far each halo reaches, in its light's radii from a still light's centre
-        (> 1): ``(extent - 1)`` radii beyond the light's pixels.
+        (> 1): ``(extent - 1)`` radii beyond the light's pixels, at most
+        :data:`HALO_MAX_REACH` of the sensor's width.
     margin_px : float
         Pixels next to each light left out (its rim belongs to it).
 
@@ -378,7 +392,7 @@ def halo_pixels(
     >>> n = 20 * xx.size
     >>> ev = make_events(np.arange(n), np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20),
     ...                  np.ones(n))
-    >>> p = halo_pixels(ev, (96, 64), 20_000)   # radius 5: out to 25 px beyond the block
+    >>> p = halo_pixels(ev, (128, 64), 20_000)   # radius 5: out to 25 px beyond the block
     >>> bool(p[24, 44]), bool(p[24, 60]), bool(p[24, 74]), bool(p[24, 75])
     (False, True, True, False)
     """
@@ -509,7 +523,7 @@ def in_halo_prior(
     boxes = []
     around = np.zeros_like(lights)  # the cells of every light's box, its band's reach added
     for ys, xs, _, radius in found:
-        reach = (HALO_EXTENT - 1.0) * radius
+        reach = _reach(radius, HALO_EXTENT, width)
         pad = math.ceil(reach) + 1
         by = slice(max(ys.start - pad, 0), min(ys.stop + pad, height))
         bx = slice(max(xs.start - pad, 0), min(xs.stop + pad, width))

@@ -203,8 +203,8 @@ class ModelDeflarer:
     halo_shift : float, optional
         Mask models: how much lower (in logit units) the keep logit of an event is
         inside its window's halo prior (:mod:`edeflare.models.halos`: from just
-        outside each light out to six of its radii). Default: the model card's (0,
-        off, unless the card says otherwise).
+        outside each light out to six of its radii, at most a fifth of the sensor's
+        width). Default: the model card's (0, off, unless the card says otherwise).
     streak_shift : float, optional
         Mask models: how much lower (in logit units) the keep logit of an event is
         on a diffraction spike of its window's lights (:mod:`edeflare.models.streaks`:
