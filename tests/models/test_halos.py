@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from conftest import random_events
 from edeflare.deflare import create_method
@@ -14,10 +15,12 @@ from edeflare.models.ghosts import in_ghost_prior, light_cells
 from edeflare.models.halos import (
     HALO_EXTENT,
     HALO_MAX_REACH,
+    LIGHT_CORE_RATE,
     MIN_LIGHT_RADIUS,
     halo_pixels,
     in_halo_prior,
     light_pixels,
+    window_lights,
 )
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.weights import ModelCard, save_model
@@ -131,7 +134,7 @@ def test_in_halo_prior_reads_each_events_pixel():
     ("name", "prior", "light", "size"),
     [
         ("halo_shift", in_halo_prior, (40, 20, 10, 20), SIZE),  # a light mid-frame
-        ("ghost_shift", in_ghost_prior, (0, 0, 8, 6), (64, 64)),  # in a corner: ghosts across
+        ("ghost_shift", in_ghost_prior, (0, 0, 8, 20), (64, 64)),  # in a corner: ghosts across
     ],
 )
 def test_a_prior_shift_lowers_exactly_the_logits_inside_the_prior(name, prior, light, size, rng):
@@ -153,7 +156,7 @@ def test_a_prior_shift_lowers_exactly_the_logits_inside_the_prior(name, prior, l
 
 def test_both_priors_add_up_and_share_one_count_of_the_light_cells(rng):
     size = (64, 64)
-    ev = merge_events(_block(0, 0, 8, 6), random_events(rng, 600, size, t0=0, span_us=20_000))
+    ev = merge_events(_block(0, 0, 8, 20), random_events(rng, 600, size, t0=0, span_us=20_000))
     lights = light_cells(ev, size, 20_000)
     halo, ghost = in_halo_prior(ev, size, 20_000), in_ghost_prior(ev, size, 20_000)
     assert halo.any() and ghost.any() and (halo != ghost).any()
@@ -313,6 +316,28 @@ def test_a_window_without_a_light_has_its_logits_raised_by_the_light_free_shift(
     with pytest.raises(ParameterError, match="light_free_shift"):
         ModelDeflarer(weights, light_free_shift=-1.0)
     assert create_method("model").params["light_free_shift"] is None  # the card's: 2
+
+
+def test_dense_scene_and_hot_pixels_are_no_lights_and_get_the_light_free_shift(rng):
+    # three groups of light cells: a lamp (1 event per pixel and ms), a patch of dense
+    # texture at 0.4 (over the cell rate, 0.25, under the lights' core rate, 0.55) and
+    # a hot pixel firing 400 times (its cell passes; no 3x3 block: no light)
+    lamp, texture = _block(40, 16, side=16, per_pixel=20), _block(120, 40, side=16, per_pixel=8)
+    hot = make_events(np.arange(400) * 50, np.full(400, 180), np.full(400, 8), np.ones(400))
+    groups = ndimage.label(light_cells(merge_events(lamp, texture, hot), SIZE, 20_000))[1]
+    assert groups == 3 and LIGHT_CORE_RATE == 0.55
+    cells = window_lights(merge_events(lamp, texture, hot), SIZE, 20_000)
+    expected = np.zeros_like(cells)
+    expected[2:4, 5:7] = True  # the lamp's four cells
+    np.testing.assert_array_equal(cells, expected)
+    # a window with only the texture and the hot pixel has no light: every logit is
+    # raised by the light-free shift, none lowered by a prior
+    weights = bundled_weights()
+    dark = merge_events(texture, hot, random_events(rng, 300, SIZE, t0=0, span_us=20_000))
+    assert not window_lights(dark, SIZE, 20_000).any()
+    plain = ModelDeflarer(weights, light_free_shift=0.0).window_logits([(0, dark)], SIZE)[0]
+    raised = ModelDeflarer(weights, light_free_shift=1.5).window_logits([(0, dark)], SIZE)[0]
+    np.testing.assert_allclose(raised - plain, 1.5, atol=1e-9)
 
 
 def test_a_light_in_the_part_of_a_window_the_stream_covers_is_found():

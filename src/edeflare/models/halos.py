@@ -41,11 +41,13 @@ from .ghosts import LIGHT_RATE, check_logit_shift, light_cells
 __all__ = [
     "HALO_EXTENT",
     "HALO_MAX_REACH",
+    "LIGHT_CORE_RATE",
     "MIN_LIGHT_RADIUS",
     "check_halo_shift",
     "halo_pixels",
     "in_halo_prior",
     "light_pixels",
+    "window_lights",
 ]
 
 HALO_EXTENT = 6.0
@@ -56,6 +58,15 @@ HALO_MAX_REACH = 0.2
 """The farthest a halo reaches beyond its light's pixels, as a share of the sensor's
 width, however large the light (a 40 px lamp at 346x260 would otherwise reach 200 px,
 the whole frame)."""
+
+LIGHT_CORE_RATE = 0.55
+"""Events per pixel and millisecond at which a light's bright pixels fire, in the median
+(:func:`window_lights`). Real lamps fire faster: the DAVIS lamps 0.60-0.84, the Gen3
+blob 1.15-1.83. Dense scene that passes the cell rate fires slower: a daytime street
+(Prophesee Gen4.1, 25 M events/s) 0.27-0.54, where 15-16 small "lights" a window
+had turned every prior on and the light-free shift off. In the simulator's night streets
+at three sensor sizes, all but a few of the 2,399 groups under this rate hold none of
+the light source's events (``experiments/halo-prior/false_lights.py``)."""
 
 MIN_LIGHT_RADIUS = 2.0
 """The thinnest light, in its radius: a solid 3x3 block. A hot pixel firing tens of
@@ -316,6 +327,46 @@ def light_pixels(
     for k, (ys, xs, own, _) in enumerate(found, start=1):
         labels[ys, xs][own] = k
     return labels, np.array([r for *_, r in found])
+
+
+def window_lights(
+    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
+) -> np.ndarray:
+    """The cells of a window's lights: what the priors and the light-free shift act on.
+
+    The :func:`~edeflare.models.ghosts.light_cells` (the cell rate) whose connected group
+    holds a light of :func:`light_pixels` (a solid disc of radius at least
+    :data:`MIN_LIGHT_RADIUS`) whose bright pixels fire at :data:`LIGHT_CORE_RATE` in the
+    median. The other groups are dense scene or hot pixels, not sources of flare.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> yy, xx = np.mgrid[16:32, 40:56]
+    >>> def block(per_pixel, span_us):   # a 16x16 block (4 cells), per_pixel events each
+    ...     n = per_pixel * xx.size
+    ...     return make_events(np.arange(n) * span_us // n, np.tile(xx.ravel(), per_pixel),
+    ...                        np.tile(yy.ravel(), per_pixel), np.ones(n))
+    >>> int(window_lights(block(20, 20_000), (96, 64), 20_000).sum())  # 1 per px and ms
+    4
+    >>> int(window_lights(block(8, 20_000), (96, 64), 20_000).sum())  # 0.4: dense scene
+    0
+    """
+    cells = light_cells(events, sensor_size, window_us, cell=cell)
+    if not cells.any():
+        return cells
+    _, found, at = _lights(events, sensor_size, window_us, cell, cells)
+    core = LIGHT_CORE_RATE * window_us / 1000.0
+    bright = [f for f in found if np.median(at.counts[f[0], f[1]][f[2]]) >= core]  # type: ignore[index]
+    groups, n = ndimage.label(cells, structure=_SQUARE)
+    if len(bright) == len(found) == n:
+        return cells  # every group is a light: the priors reuse what _lights found
+    keep = np.zeros(n + 1, dtype=bool)
+    for ys, xs, own, _ in bright:
+        py, px = np.nonzero(own)
+        keep[groups[(py + ys.start) // cell, (px + xs.start) // cell]] = True
+    keep[0] = False
+    return keep[groups]
 
 
 def _reach(radius: float, extent: float, width: int) -> float:

@@ -42,9 +42,8 @@ from .ghosts import (
     check_logit_shift,
     covered_us,
     in_ghost_prior,
-    light_cells,
 )
-from .halos import check_halo_shift, in_halo_prior
+from .halos import check_halo_shift, in_halo_prior, window_lights
 from .streaks import check_streak_shift, in_streak_prior
 from .weights import ModelCard, load_model
 
@@ -212,8 +211,8 @@ class ModelDeflarer:
         unless the card says otherwise).
     light_free_shift : float, optional
         Mask models: how much higher (in logit units) the keep logit of every event is
-        in a window with no light (no cell passing
-        :func:`~edeflare.models.ghosts.light_cells`): flare needs a bright source, and
+        in a window with no light (no cell of
+        :func:`~edeflare.models.halos.window_lights`): flare needs a bright source, and
         without one what the network would drop is more likely scene. Default: the
         model card's (0, off, unless the card says otherwise).
 
@@ -446,7 +445,7 @@ class ModelDeflarer:
                 continue
             # the lights' rates over the part of the window the stream covers
             span = covered_us(events, start, w)
-            lights = light_cells(events, sensor_size, span)  # counted once for all priors
+            lights = window_lights(events, sensor_size, span)  # counted once for all priors
             if not lights.any():
                 v += self.light_free_shift  # flare needs a source: keep more without one
                 continue
