@@ -16,27 +16,18 @@ import edeflare.models.halos as halos
 from edeflare.data.generate import RECIPES, generate_sequence
 from edeflare.deflare import deflare
 from edeflare.demo import DEMO_INDEX, DEMO_SEED
-
-
-def _keys(ev):
-    return (
-        (ev["t"].astype(np.int64) << 24)
-        | (ev["y"].astype(np.int64) << 13)
-        | (ev["x"].astype(np.int64) << 1)
-        | ev["p"]
-    )
-
+from edeflare.events import event_keys
 
 recipe = RECIPES["eflare-night"].replace(seed=DEMO_SEED)
 seq = generate_sequence(recipe, DEMO_INDEX % recipe.sequences)
 size, inp, gt = seq.sensor_size, seq.streams["input"], seq.streams["gt"]
-scene = np.isin(_keys(gt), _keys(seq.streams["background"]))
+scene = np.isin(event_keys(gt, size), event_keys(seq.streams["background"], size))
 cap = halos.HALO_MAX_REACH
 fig, axes = plt.subplots(2, 3, figsize=(15, 8.4), constrained_layout=True)
 variants = (("halo reach uncapped", 1e9), ("capped at 0.2 x width", cap))
 for row, (label, reach) in enumerate(variants):
     halos.HALO_MAX_REACH = reach
-    kept = np.isin(_keys(gt), _keys(deflare(inp, size, "model")))
+    kept = np.isin(event_keys(gt, size), event_keys(deflare(inp, size, "model"), size))
     share = kept[scene].mean()
     for col in range(3):
         a = int(gt["t"][0]) + 20_000 * col

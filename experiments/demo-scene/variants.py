@@ -15,22 +15,15 @@ from edeflare.data.generate import RECIPES, generate_sequence
 from edeflare.deflare import deflare
 from edeflare.demo import DEMO_INDEX, DEMO_SEED
 from edeflare.eval.metrics import deletion_shares
+from edeflare.events import event_keys
 
 recipe = RECIPES["eflare-night"].replace(seed=DEMO_SEED)
 seq = generate_sequence(recipe, DEMO_INDEX % recipe.sequences)
 size, inp, gt = seq.sensor_size, seq.streams["input"], seq.streams["gt"]
 
 
-def _keys(ev):
-    return (
-        (ev["t"].astype(np.int64) << 24)
-        | (ev["y"].astype(np.int64) << 13)
-        | (ev["x"].astype(np.int64) << 1)
-        | ev["p"]
-    )
-
-
-scene = np.isin(_keys(gt), _keys(seq.streams["background"]))  # the street, not the light
+# the street, not the light
+scene = np.isin(event_keys(gt, size), event_keys(seq.streams["background"], size))
 print(f"{inp.size} input events, {gt.size} to keep ({scene.sum()} of the scene)", flush=True)
 for arg in sys.argv[1:] or ["-"]:
     params = {} if arg == "-" else {
@@ -38,7 +31,7 @@ for arg in sys.argv[1:] or ["-"]:
     }  # fmt: skip
     out = deflare(inp, size, "model", **params)
     removed, kept = deletion_shares(inp, gt, out, size)
-    kept_gt = np.isin(_keys(gt), _keys(out))
+    kept_gt = np.isin(event_keys(gt, size), event_keys(out, size))
     street, light = 100 * kept_gt[scene].mean(), 100 * kept_gt[~scene].mean()
     print(
         f"{arg}: flare removed {100 * removed:.1f} %, true kept {100 * kept:.1f} %, "

@@ -40,7 +40,7 @@ import torch
 
 from edeflare.deflare import create_method
 from edeflare.eval.score import load_lights, score_events
-from edeflare.events import make_events
+from edeflare.events import event_keys, make_events
 from edeflare.io import read_events
 from edeflare.models.flaremask import event_features
 from edeflare.models.infer import _full_precision, bundled_weights
@@ -74,15 +74,6 @@ def _timed(method, events, size, repeat):
     return out, best
 
 
-def _key(ev: np.ndarray) -> np.ndarray:
-    """One sortable 64-bit key per event: t, then the pixel and polarity."""
-    return (
-        ev["t"].astype(np.int64) * 2_000_000
-        + (ev["y"].astype(np.int64) * 1400 + ev["x"]) * 2
-        + ev["p"]
-    )
-
-
 def _compare(events, size, repeat, devices, **params):
     """Per device: events kept, seconds, real-time factor; and the decisions that differ."""
     span_s = max(float(events["t"][-1] - events["t"][0]) * 1e-6, 1e-9)
@@ -99,7 +90,7 @@ def _compare(events, size, repeat, devices, **params):
             "M_events_per_s": round(events.size / sec * 1e-6, 2),
         }
     if len(outs) == 2:
-        a, b = (np.unique(_key(o)) for o in outs.values())
+        a, b = (np.unique(event_keys(o, size)) for o in outs.values())
         row["decisions_differ"] = int(np.setxor1d(a, b, assume_unique=True).size)
     return row, outs
 
