@@ -335,8 +335,10 @@ def test_deflare_prior_shift_drops_a_subset_and_a_bad_one_is_a_clear_error(
     option, tmp_path, capsys
 ):
     size = (64, 64)
-    k = np.arange(400)  # a light in the top-left cell; sparse events around it and beyond
-    light = make_events(k * 50, k % 8, k // 8 % 8, np.ones(400))
+    # a light in the top-left cell (0.78 events per pixel and ms, over the lights' core
+    # rate); sparse events around it and beyond
+    k = np.arange(1000)
+    light = make_events(k * 20, k % 8, k // 8 % 8, np.ones(1000))
     rng = np.random.default_rng(3)
     sparse = random_events(rng, 200, size, t0=0, span_us=20_000)
     src = tmp_path / "in.h5"
