@@ -554,6 +554,18 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    far_shift: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--far-shift",
+            "mask models: raise the keep logit by this much for the events far from every "
+            "light of their window (beyond 0.3 of the sensor's width, and not where the "
+            "lights' ghosts can be nor on their spikes: flare lies around its source; 0: off)",
+            metavar="LOGIT",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     runtime: str = dataclasses.field(
         default="auto",
         metadata=cli_option(
@@ -738,6 +750,7 @@ class ModelMethod(Method):
         halo_shift: float | None = None,
         streak_shift: float | None = None,
         light_free_shift: float | None = None,
+        far_shift: float | None = None,
     ) -> None:
         from .models.ghosts import check_ghost_shift, check_logit_shift
         from .models.halos import check_halo_shift
@@ -759,6 +772,8 @@ class ModelMethod(Method):
             streak_shift = check_streak_shift(streak_shift)
         if light_free_shift is not None:
             light_free_shift = check_logit_shift(light_free_shift, "light_free_shift")
+        if far_shift is not None:
+            far_shift = check_logit_shift(far_shift, "far_shift")
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -797,6 +812,7 @@ class ModelMethod(Method):
             halo_shift=halo_shift,
             streak_shift=streak_shift,
             light_free_shift=light_free_shift,
+            far_shift=far_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
         # shared by every stream of this method: a benchmark opens one per sequence.
@@ -820,6 +836,7 @@ class ModelMethod(Method):
                 halo_shift=p["halo_shift"],
                 streak_shift=p["streak_shift"],
                 light_free_shift=p["light_free_shift"],
+                far_shift=p["far_shift"],
             )
         deflarer = self._deflarers[seed]
         size = check_sensor_size(sensor_size)

@@ -11,12 +11,14 @@ from edeflare.deflare import create_method
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
 from edeflare.models import create_model
-from edeflare.models.ghosts import in_ghost_prior, light_cells
+from edeflare.models.ghosts import ghost_cells, in_ghost_prior, light_cells
 from edeflare.models.halos import (
+    FAR_REACH,
     HALO_EXTENT,
     HALO_MAX_REACH,
     LIGHT_CORE_RATE,
     MIN_LIGHT_RADIUS,
+    far_from_lights,
     halo_pixels,
     in_halo_prior,
     light_pixels,
@@ -316,6 +318,51 @@ def test_a_window_without_a_light_has_its_logits_raised_by_the_light_free_shift(
     with pytest.raises(ParameterError, match="light_free_shift"):
         ModelDeflarer(weights, light_free_shift=-1.0)
     assert create_method("model").params["light_free_shift"] is None  # the card's: 2
+
+
+def test_far_from_the_lights_is_beyond_a_share_of_the_width_from_every_light_cell():
+    # a lamp in the cells x 5-6, y 2-3 (pixels x 40-55, y 16-31); 0.3 x 192 = 57.6 px
+    assert FAR_REACH == 0.3
+    lamp = _block(40, 16, side=16, per_pixel=20)
+    lights = window_lights(lamp, SIZE, 20_000)
+    # cells in row 2 whose centres are 0, 56 and 64 px right of the lamp's right cell
+    # (x 6), and one 40 px left of its left cell (x 5)
+    ev = make_events([1, 2, 3, 4], [52, 108, 116, 4], [20, 20, 20, 20], [1, 1, 1, 1])
+    assert far_from_lights(ev, SIZE, lights).tolist() == [False, False, True, False]
+    assert far_from_lights(ev, SIZE, lights, reach=0.2).tolist() == [False, True, True, True]
+    assert far_from_lights(ev, SIZE, np.zeros_like(lights)).all()  # no light: all far
+    with pytest.raises(ValueError, match="shape"):
+        far_from_lights(ev, SIZE, lights[:, :-1])
+
+
+def test_the_far_shift_raises_the_events_far_from_the_lights_outside_their_ghosts(rng):
+    # a lamp near the left edge; scattered events over the whole sensor
+    lamp = _block(8, 16, side=16, per_pixel=20)
+    scatter = random_events(rng, 2000, SIZE, t0=0, span_us=20_000)
+    window = merge_events(lamp, scatter)
+    weights = bundled_weights()
+    plain = ModelDeflarer(weights, far_shift=0.0).window_logits([(0, window)], SIZE)[0]
+    raised = ModelDeflarer(weights, far_shift=2.5).window_logits([(0, window)], SIZE)[0]
+    lights = window_lights(window, SIZE, 20_000)
+    cy, cx = window["y"] // 8, window["x"] // 8
+    ghosts = ghost_cells(window, SIZE, 20_000, lights=lights)[cy, cx]
+    far = far_from_lights(window, SIZE, lights) & ~ghosts
+    # far: more than 57.6 px between the event's cell and every lamp cell (x 1-2, y 2-3)
+    lamp_cells = np.argwhere(lights)
+    gap = np.hypot(cy[:, None] - lamp_cells[:, 0], cx[:, None] - lamp_cells[:, 1]).min(axis=1)
+    np.testing.assert_array_equal(far, (8 * gap > 0.3 * SIZE[0]) & ~ghosts)
+    assert far.sum() > 500 and (far & (window["x"] < 64)).sum() == 0
+    assert (ghosts & (8 * gap > 0.3 * SIZE[0])).any()  # across the centre: not raised
+    np.testing.assert_allclose((raised - plain)[far], 2.5, atol=1e-9)
+    np.testing.assert_array_equal(raised[~far], plain[~far])
+    # a window without a light gets the light-free shift only
+    dark = scatter[scatter["x"] >= 100]
+    only_far = ModelDeflarer(weights, far_shift=2.5, light_free_shift=0.0)
+    both = ModelDeflarer(weights, far_shift=2.5, light_free_shift=1.0)
+    (d0,), (d1,) = only_far.window_logits([(0, dark)], SIZE), both.window_logits([(0, dark)], SIZE)
+    np.testing.assert_allclose(d1 - d0, 1.0, atol=1e-9)
+    with pytest.raises(ParameterError, match="far_shift"):
+        ModelDeflarer(weights, far_shift=float("nan"))
 
 
 def test_dense_scene_and_hot_pixels_are_no_lights_and_get_the_light_free_shift(rng):

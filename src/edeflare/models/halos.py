@@ -39,11 +39,13 @@ from ..events import SensorSize, check_sensor_size
 from .ghosts import LIGHT_RATE, check_logit_shift, light_cells
 
 __all__ = [
+    "FAR_REACH",
     "HALO_EXTENT",
     "HALO_MAX_REACH",
     "LIGHT_CORE_RATE",
     "MIN_LIGHT_RADIUS",
     "check_halo_shift",
+    "far_from_lights",
     "halo_pixels",
     "in_halo_prior",
     "light_pixels",
@@ -58,6 +60,13 @@ HALO_MAX_REACH = 0.2
 """The farthest a halo reaches beyond its light's pixels, as a share of the sensor's
 width, however large the light (a 40 px lamp at 346x260 would otherwise reach 200 px,
 the whole frame)."""
+
+FAR_REACH = 0.3
+"""Beyond this share of the sensor's width from every light of a window, an event is far
+from the lights (:func:`far_from_lights`): past the farthest halo the prior marks
+(:data:`HALO_MAX_REACH`), and past the halos of the annotated real recordings (the DAVIS
+lamps' annotated halo ends 60 px from their centres, 0.17 of the width) and the
+simulator's largest (about 250 px at 1280x720, 0.2)."""
 
 LIGHT_CORE_RATE = 0.55
 """Events per pixel and millisecond at which a light's bright pixels fire, in the median
@@ -368,6 +377,43 @@ def window_lights(
         keep[groups[(py + ys.start) // cell, (px + xs.start) // cell]] = True
     keep[0] = False
     return keep[groups]
+
+
+def far_from_lights(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    lights: np.ndarray,
+    *,
+    cell: int = 8,
+    reach: float = FAR_REACH,
+) -> np.ndarray:
+    """Whether each event of a window is far from all of its lights: its cell's centre
+    more than ``reach`` of the sensor's width from the centre of every light cell.
+
+    ``lights`` is the window's :func:`window_lights` (cells of ``cell`` pixels). Without
+    a light every event is far. Distances are measured between cell centres, so they
+    are exact to a cell.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> lights = np.zeros((8, 32), dtype=bool)
+    >>> lights[0, 0] = True                        # a light in the top-left cell
+    >>> ev = make_events([0, 1, 2], [4, 76, 84], [4, 4, 4], [1, 1, 1])
+    >>> far_from_lights(ev, (256, 64), lights).tolist()   # 0.3 x 256 = 76.8 px
+    [False, False, True]
+    """
+    width, height = check_sensor_size(sensor_size)
+    if lights.shape != (-(-height // cell), -(-width // cell)):
+        raise ValueError(
+            f"lights has shape {lights.shape}, not the {width}x{height} sensor's cells"
+        )
+    if not lights.any():
+        return np.ones(events.size, dtype=bool)
+    # every cell's distance to the nearest light cell, in pixels (scipy's exact
+    # Euclidean distance transform, on the grid of cells)
+    far = ndimage.distance_transform_edt(~lights) * cell > reach * width
+    return far[events["y"] // cell, events["x"] // cell]
 
 
 def _reach(radius: float, extent: float, width: int) -> float:

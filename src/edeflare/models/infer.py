@@ -41,9 +41,10 @@ from .ghosts import (
     check_ghost_shift,
     check_logit_shift,
     covered_us,
+    ghost_cells,
     in_ghost_prior,
 )
-from .halos import check_halo_shift, in_halo_prior, window_lights
+from .halos import check_halo_shift, far_from_lights, in_halo_prior, window_lights
 from .streaks import check_streak_shift, in_streak_prior
 from .weights import ModelCard, load_model
 
@@ -215,6 +216,14 @@ class ModelDeflarer:
         :func:`~edeflare.models.halos.window_lights`): flare needs a bright source, and
         without one what the network would drop is more likely scene. Default: the
         model card's (0, off, unless the card says otherwise).
+    far_shift : float, optional
+        Mask models: how much higher (in logit units) the keep logit of an event is
+        in a window with lights where it is far from all of them
+        (:func:`~edeflare.models.halos.far_from_lights`: beyond
+        :data:`~edeflare.models.halos.FAR_REACH` of the sensor's width) and neither
+        where their ghosts can be (:func:`~edeflare.models.ghosts.ghost_cells`) nor on
+        their diffraction spikes: flare lies around its source. Default: the model
+        card's (0, off, unless the card says otherwise).
 
     Attributes
     ----------
@@ -241,6 +250,7 @@ class ModelDeflarer:
         halo_shift: float | None = None,
         streak_shift: float | None = None,
         light_free_shift: float | None = None,
+        far_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -291,7 +301,9 @@ class ModelDeflarer:
         self.streak_shift = check_streak_shift(shift)
         shift = card.light_free_shift if light_free_shift is None else light_free_shift
         self.light_free_shift = check_logit_shift(shift, "light_free_shift")
-        for name in ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift"):
+        shift = card.far_shift if far_shift is None else far_shift
+        self.far_shift = check_logit_shift(shift, "far_shift")
+        for name in ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift"):
             if getattr(self, name) and not isinstance(model, FlareMaskNet):
                 raise EdeflareError(
                     f"{weights}: {name} needs a mask model, not a {card.preset} (voxel-to-voxel)"
@@ -438,11 +450,10 @@ class ModelDeflarer:
             )
             for (start, events), lg in zip(batch, logits, strict=True)
         ]
+        priors = (self.ghost_shift, self.halo_shift, self.streak_shift)
+        if not (any(priors) or self.light_free_shift or self.far_shift):
+            return out
         for (start, events), v in zip(batch, out, strict=True):
-            if not (
-                self.ghost_shift or self.halo_shift or self.streak_shift or self.light_free_shift
-            ):
-                continue
             # the lights' rates over the part of the window the stream covers
             span = covered_us(events, start, w)
             lights = window_lights(events, sensor_size, span)  # counted once for all priors
@@ -453,9 +464,29 @@ class ModelDeflarer:
                 v -= self.ghost_shift * in_ghost_prior(events, sensor_size, span, lights=lights)
             if self.halo_shift:
                 v -= self.halo_shift * in_halo_prior(events, sensor_size, span, lights=lights)
-            if self.streak_shift:
-                v -= self.streak_shift * in_streak_prior(events, sensor_size, span, lights=lights)
+            spikes = np.zeros(events.size, dtype=bool)
+            if self.streak_shift or self.far_shift:
+                spikes = in_streak_prior(events, sensor_size, span, lights=lights)
+            v -= self.streak_shift * spikes
+            if self.far_shift:
+                v += self.far_shift * self._far(events, sensor_size, span, lights, spikes)
         return out
+
+    @staticmethod
+    def _far(
+        events: np.ndarray,
+        sensor_size: SensorSize,
+        span: int,
+        lights: np.ndarray,
+        spikes: np.ndarray,
+    ) -> np.ndarray:
+        """The events the far shift raises: far from every light, and neither where the
+        lights' ghosts can be nor on their spikes (flare that reaches far)."""
+        far = far_from_lights(events, sensor_size, lights)
+        if far.any():
+            cells = ghost_cells(events, sensor_size, span, lights=lights)
+            far &= ~cells[events["y"] // 8, events["x"] // 8] & ~spikes
+        return far
 
     def _run_mask(
         self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
