@@ -13,6 +13,7 @@ from edeflare.events import make_events, merge_events
 from edeflare.models import create_model
 from edeflare.models.ghosts import ghost_cells, in_ghost_prior, light_cells
 from edeflare.models.halos import (
+    FAR_RADII,
     FAR_REACH,
     HALO_EXTENT,
     HALO_MAX_REACH,
@@ -320,19 +321,34 @@ def test_a_window_without_a_light_has_its_logits_raised_by_the_light_free_shift(
     assert create_method("model").params["light_free_shift"] is None  # the card's: 2
 
 
-def test_far_from_the_lights_is_beyond_a_share_of_the_width_from_every_light_cell():
-    # a lamp in the cells x 5-6, y 2-3 (pixels x 40-55, y 16-31); 0.3 x 192 = 57.6 px
-    assert FAR_REACH == 0.3
+def test_far_from_the_lights_is_beyond_a_share_of_the_width_and_radii_from_every_light():
+    # a lamp in the cells x 5-6, y 2-3 (pixels x 40-55, y 16-31; radius 8): beyond both
+    # 0.3 x 192 = 57.6 px and 8 radii, 64 px
+    assert (FAR_REACH, FAR_RADII) == (0.3, 8.0)
     lamp = _block(40, 16, side=16, per_pixel=20)
     lights = window_lights(lamp, SIZE, 20_000)
-    # cells in row 2 whose centres are 0, 56 and 64 px right of the lamp's right cell
-    # (x 6), and one 40 px left of its left cell (x 5)
-    ev = make_events([1, 2, 3, 4], [52, 108, 116, 4], [20, 20, 20, 20], [1, 1, 1, 1])
-    assert far_from_lights(ev, SIZE, lights).tolist() == [False, False, True, False]
-    assert far_from_lights(ev, SIZE, lights, reach=0.2).tolist() == [False, True, True, True]
-    assert far_from_lights(ev, SIZE, np.zeros_like(lights)).all()  # no light: all far
+    # cells in row 2 whose centres are 0, 56 and 72 px right of the lamp's right cell
+    # (x 6), and one 40 px left of its left cell (x 5); the window's last four events
+    ev = merge_events(
+        lamp, make_events([19_996, 19_997, 19_998, 19_999], [52, 108, 124, 4], [20] * 4, [1] * 4)
+    )
+    tail = slice(-4, None)
+    assert far_from_lights(ev, SIZE, 20_000)[tail].tolist() == [False, False, True, False]
+    # the same with the lights counted; with a share of 0.2 (38.4 px) the radii decide
+    assert far_from_lights(ev, SIZE, 20_000, lights=lights)[tail].tolist() == [
+        False, False, True, False
+    ]  # fmt: skip
+    assert far_from_lights(ev, SIZE, 20_000, reach=0.2)[tail].tolist() == [
+        False, False, True, False
+    ]  # fmt: skip
+    # and with 4 radii (32 px): the share of 0.2 decides
+    assert far_from_lights(ev, SIZE, 20_000, reach=0.2, radii=4.0)[tail].tolist() == [
+        False, True, True, True
+    ]  # fmt: skip
+    dark = ev[-4:]  # no light: all far
+    assert far_from_lights(dark, SIZE, 20_000).all()
     with pytest.raises(ValueError, match="shape"):
-        far_from_lights(ev, SIZE, lights[:, :-1])
+        far_from_lights(ev, SIZE, 20_000, lights=lights[:, :-1])
 
 
 def test_the_far_shift_raises_the_events_far_from_the_lights_outside_their_ghosts(rng):
@@ -346,13 +362,14 @@ def test_the_far_shift_raises_the_events_far_from_the_lights_outside_their_ghost
     lights = window_lights(window, SIZE, 20_000)
     cy, cx = window["y"] // 8, window["x"] // 8
     ghosts = ghost_cells(window, SIZE, 20_000, lights=lights)[cy, cx]
-    far = far_from_lights(window, SIZE, lights) & ~ghosts
-    # far: more than 57.6 px between the event's cell and every lamp cell (x 1-2, y 2-3)
+    far = far_from_lights(window, SIZE, 20_000, lights=lights) & ~ghosts
+    # far: more than 57.6 px (and 8 radii, 64 px) between the event's cell and every lamp
+    # cell (x 1-2, y 2-3)
     lamp_cells = np.argwhere(lights)
     gap = np.hypot(cy[:, None] - lamp_cells[:, 0], cx[:, None] - lamp_cells[:, 1]).min(axis=1)
-    np.testing.assert_array_equal(far, (8 * gap > 0.3 * SIZE[0]) & ~ghosts)
-    assert far.sum() > 500 and (far & (window["x"] < 64)).sum() == 0
-    assert (ghosts & (8 * gap > 0.3 * SIZE[0])).any()  # across the centre: not raised
+    np.testing.assert_array_equal(far, (8 * gap > 64) & ~ghosts)
+    assert far.sum() > 500 and (far & (window["x"] < 72)).sum() == 0
+    assert (ghosts & (8 * gap > 64)).any()  # across the centre: not raised
     np.testing.assert_allclose((raised - plain)[far], 2.5, atol=1e-9)
     np.testing.assert_array_equal(raised[~far], plain[~far])
     # a window without a light gets the light-free shift only

@@ -39,6 +39,7 @@ from ..events import SensorSize, check_sensor_size
 from .ghosts import LIGHT_RATE, check_logit_shift, light_cells
 
 __all__ = [
+    "FAR_RADII",
     "FAR_REACH",
     "HALO_EXTENT",
     "HALO_MAX_REACH",
@@ -67,6 +68,13 @@ from the lights (:func:`far_from_lights`): past the farthest halo the prior mark
 (:data:`HALO_MAX_REACH`), and past the halos of the annotated real recordings (the DAVIS
 lamps' annotated halo ends 60 px from their centres, 0.17 of the width) and the
 simulator's largest (about 250 px at 1280x720, 0.2)."""
+
+FAR_RADII = 8.0
+"""A large light's scattered light reaches farther than :data:`FAR_REACH`: an event is far
+from a light only beyond this many of its radii too. The simulator's 29 px light at
+346x260 (``edeflare demo``) scatters to 207 px from its centre (95th percentile); the
+real lamps are smaller (DAVIS346 7-8 px, Gen3 18 px at 640x480), so the share of the
+width decides for them."""
 
 LIGHT_CORE_RATE = 0.55
 """Events per pixel and millisecond at which a light's bright pixels fire, in the median
@@ -382,38 +390,59 @@ def window_lights(
 def far_from_lights(
     events: np.ndarray,
     sensor_size: SensorSize,
-    lights: np.ndarray,
+    window_us: int,
     *,
     cell: int = 8,
+    lights: np.ndarray | None = None,
     reach: float = FAR_REACH,
+    radii: float = FAR_RADII,
 ) -> np.ndarray:
-    """Whether each event of a window is far from all of its lights: its cell's centre
-    more than ``reach`` of the sensor's width from the centre of every light cell.
+    """Whether each event of a window is far from all of its lights.
 
-    ``lights`` is the window's :func:`window_lights` (cells of ``cell`` pixels). Without
-    a light every event is far. Distances are measured between cell centres, so they
-    are exact to a cell.
+    An event is far from a light when its cell's centre is more than ``reach`` of the
+    sensor's width, and more than ``radii`` of the light's radius (:func:`light_pixels`),
+    from the centre of every cell of the light's group of light cells. Distances are
+    measured between cell centres, so they are exact to a cell. Without a light every
+    event is far.
+
+    ``lights`` is the window's :func:`window_lights`, when already counted.
 
     Examples
     --------
+    A 16x16 lamp in the cells x 1-2, y 0-1 of a 256x64 sensor: 0.3 x 256 = 76.8 px.
+
     >>> from edeflare.events import make_events
-    >>> lights = np.zeros((8, 32), dtype=bool)
-    >>> lights[0, 0] = True                        # a light in the top-left cell
-    >>> ev = make_events([0, 1, 2], [4, 76, 84], [4, 4, 4], [1, 1, 1])
-    >>> far_from_lights(ev, (256, 64), lights).tolist()   # 0.3 x 256 = 76.8 px
-    [False, False, True]
+    >>> yy, xx = np.mgrid[0:16, 8:24]
+    >>> n = 20 * xx.size
+    >>> lamp = make_events(np.arange(n) * 20_000 // n, np.tile(xx.ravel(), 20),
+    ...                    np.tile(yy.ravel(), 20), np.ones(n))
+    >>> ev = np.concatenate([lamp, make_events([19_998, 19_999], [92, 100], [4, 4], [1, 1])])
+    >>> far_from_lights(ev, (256, 64), 20_000)[-2:].tolist()   # 72 px, 80 px
+    [False, True]
     """
     width, height = check_sensor_size(sensor_size)
+    if lights is None:
+        lights = window_lights(events, sensor_size, window_us, cell=cell)
     if lights.shape != (-(-height // cell), -(-width // cell)):
         raise ValueError(
             f"lights has shape {lights.shape}, not the {width}x{height} sensor's cells"
         )
-    if not lights.any():
-        return np.ones(events.size, dtype=bool)
-    # every cell's distance to the nearest light cell, in pixels (scipy's exact
-    # Euclidean distance transform, on the grid of cells)
-    far = ndimage.distance_transform_edt(~lights) * cell > reach * width
-    return far[events["y"] // cell, events["x"] // cell]
+    near = np.zeros(lights.shape, dtype=bool)
+    if lights.any():
+        _, found, _ = _lights(events, sensor_size, window_us, cell, lights)
+        groups, n = ndimage.label(lights, structure=_SQUARE)
+        # each group's farthest reach: the share of the width, or its largest light's radii
+        reach_px = np.full(n + 1, reach * width)
+        for ys, xs, own, radius in found:
+            py, px = np.nonzero(own)
+            ids = groups[(py + ys.start) // cell, (px + xs.start) // cell]
+            reach_px[ids] = np.maximum(reach_px[ids], radii * radius)
+        for k in np.unique(reach_px[1:]):
+            # every cell's distance to the nearest cell of the groups reaching k pixels
+            # (scipy's exact Euclidean distance transform on the grid of cells)
+            mine = (reach_px[groups] == k) & lights
+            near |= ndimage.distance_transform_edt(~mine) * cell <= k
+    return ~near[events["y"] // cell, events["x"] // cell]
 
 
 def _reach(radius: float, extent: float, width: int) -> float:

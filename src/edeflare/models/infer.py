@@ -220,7 +220,8 @@ class ModelDeflarer:
         Mask models: how much higher (in logit units) the keep logit of an event is
         in a window with lights where it is far from all of them
         (:func:`~edeflare.models.halos.far_from_lights`: beyond
-        :data:`~edeflare.models.halos.FAR_REACH` of the sensor's width) and neither
+        :data:`~edeflare.models.halos.FAR_REACH` of the sensor's width and
+        :data:`~edeflare.models.halos.FAR_RADII` of the light's radii) and neither
         where their ghosts can be (:func:`~edeflare.models.ghosts.ghost_cells`) nor on
         their diffraction spikes: flare lies around its source. Default: the model
         card's (0, off, unless the card says otherwise).
@@ -482,7 +483,7 @@ class ModelDeflarer:
     ) -> np.ndarray:
         """The events the far shift raises: far from every light, and neither where the
         lights' ghosts can be nor on their spikes (flare that reaches far)."""
-        far = far_from_lights(events, sensor_size, lights)
+        far = far_from_lights(events, sensor_size, span, lights=lights)
         if far.any():
             cells = ghost_cells(events, sensor_size, span, lights=lights)
             far &= ~cells[events["y"] // 8, events["x"] // 8] & ~spikes
