@@ -8,7 +8,9 @@ of the events in them, and around each light the events binned by angle and ring
 window without a light costs one cell count. Each case de-flares one recording in
 memory (``edeflare.deflare``, the model loaded and warmed once per row), best of
 ``--repeat`` runs. The reference in the same run is the same model with every prior
-off (``halo_shift=0, ghost_shift=0, streak_shift=0``): ``ratio`` is each row's time over it.
+off (``halo_shift=0, ghost_shift=0, streak_shift=0``, and no light-free or far shift):
+``ratio`` is each row's time over it. The far shift (``far_shift``) costs a distance
+transform on the cells per group of lights, the ghosts' cells and the spike prior.
 
 Cases: the two annotated real recordings with lights (Prophesee Gen3 rotating light,
 640x480, 50 ms; DAVIS346 lamps, 130 ms) and a synthetic 1280x720 second with a
@@ -33,11 +35,14 @@ from edeflare.deflare import create_method
 from edeflare.events import EVENT_DTYPE, merge_events
 from edeflare.io import read_events
 
+OFF = {"halo_shift": 0.0, "ghost_shift": 0.0, "streak_shift": 0.0}
+SHIFTS_OFF = {"light_free_shift": 0.0, "far_shift": 0.0}
 ROWS = {
-    "default, priors off (reference)": {"halo_shift": 0.0, "ghost_shift": 0.0, "streak_shift": 0.0},
-    "default, halo prior only": {"ghost_shift": 0.0, "streak_shift": 0.0},
-    "default without the spike prior": {"streak_shift": 0.0},
-    "default (halo, ghost and spike priors)": {},
+    "default, priors off (reference)": {**OFF, **SHIFTS_OFF},
+    "default, halo prior only": {"ghost_shift": 0.0, "streak_shift": 0.0, **SHIFTS_OFF},
+    "default without the spike prior": {"streak_shift": 0.0, **SHIFTS_OFF},
+    "default without the far shift": {"far_shift": 0.0},
+    "default (halo, ghost and spike priors, light-free and far shifts)": {},
 }
 
 

@@ -14,8 +14,9 @@ three. The reference is dv-processing's ``FastDecayNoiseFilter`` (dv-fastdecay),
 filter users already run, which removes the ghost ring of
 ``../shared/reference/real_flare_example.png``. The row ``model, card before`` is the
 default with the card it had before the sixth session of 2026-11-26 (threshold 0.5,
-halo and ghost shifts 1, no spike prior; ``experiments/streaks``). Prints the table and writes
-``results/ghost_removal.json``. Run::
+halo and ghost shifts 1, no spike prior, no light-free or far shift;
+``experiments/streaks``). Prints the table and writes ``results/ghost_removal.json``.
+Run::
 
     python benchmarks/ghost_removal.py [--model WEIGHTS] [--data DIR]
 """
@@ -45,7 +46,14 @@ ROWS = {
     # the default's card before the sixth session of 2026-11-26 (experiments/streaks)
     "model, card before": (
         "model",
-        {"keep_threshold": 0.5, "halo_shift": 1.0, "ghost_shift": 1.0, "streak_shift": 0.0},
+        {
+            "keep_threshold": 0.5,
+            "halo_shift": 1.0,
+            "ghost_shift": 1.0,
+            "streak_shift": 0.0,
+            "light_free_shift": 0.0,
+            "far_shift": 0.0,
+        },
     ),
     "dv-fastdecay": ("dv-fastdecay", {}),
     "dv-bafilter": ("dv-bafilter", {}),
