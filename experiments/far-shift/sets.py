@@ -8,9 +8,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
-from flare_targets import _dataset, _model  # noqa: E402
+from flare_targets import _dataset, _model
 
-from edeflare.eval.benchmark import benchmark  # noqa: E402
+from edeflare.eval.benchmark import benchmark
 
 if __name__ == "__main__":
     which, data = sys.argv[1], Path("benchmarks/.data")

@@ -345,10 +345,17 @@ def test_far_from_the_lights_is_beyond_a_share_of_the_width_and_radii_from_every
     assert far_from_lights(ev, SIZE, 20_000, reach=0.2, radii=4.0)[tail].tolist() == [
         False, True, True, True
     ]  # fmt: skip
-    dark = ev[-4:]  # no light: all far
+    # cells left out (the lights' ghosts' cells, in the model) are never far
+    out = np.zeros_like(lights)
+    out[2, 15] = True  # the cell of the far event (x 124)
+    assert not far_from_lights(ev, SIZE, 20_000, exclude=out)[tail].any()
+    dark = ev[-4:]  # no light: all far, but for the cells left out
     assert far_from_lights(dark, SIZE, 20_000).all()
+    assert far_from_lights(dark, SIZE, 20_000, exclude=out).tolist() == [True, True, False, True]
     with pytest.raises(ValueError, match="shape"):
         far_from_lights(ev, SIZE, 20_000, lights=lights[:, :-1])
+    with pytest.raises(ValueError, match="exclude"):
+        far_from_lights(ev, SIZE, 20_000, exclude=out[:-1])
 
 
 def test_the_far_shift_raises_the_events_far_from_the_lights_outside_their_ghosts(rng):

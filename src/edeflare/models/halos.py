@@ -396,6 +396,7 @@ def far_from_lights(
     lights: np.ndarray | None = None,
     reach: float = FAR_REACH,
     radii: float = FAR_RADII,
+    exclude: np.ndarray | None = None,
 ) -> np.ndarray:
     """Whether each event of a window is far from all of its lights.
 
@@ -405,7 +406,9 @@ def far_from_lights(
     measured between cell centres, so they are exact to a cell. Without a light every
     event is far.
 
-    ``lights`` is the window's :func:`window_lights`, when already counted.
+    ``lights`` is the window's :func:`window_lights`, when already counted; ``exclude``,
+    cells (the same shape) whose events are never far, such as where the lights' ghosts
+    can be (:func:`~edeflare.models.ghosts.ghost_cells`).
 
     Examples
     --------
@@ -427,9 +430,12 @@ def far_from_lights(
         raise ValueError(
             f"lights has shape {lights.shape}, not the {width}x{height} sensor's cells"
         )
-    near = np.zeros(lights.shape, dtype=bool)
+    near = np.zeros(lights.shape, dtype=bool) if exclude is None else exclude.copy()
+    if near.shape != lights.shape:
+        raise ValueError(f"exclude has shape {near.shape}, not the lights' {lights.shape}")
+    at = None
     if lights.any():
-        _, found, _ = _lights(events, sensor_size, window_us, cell, lights)
+        _, found, at = _lights(events, sensor_size, window_us, cell, lights)
         groups, n = ndimage.label(lights, structure=_SQUARE)
         # each group's farthest reach: the share of the width, or its largest light's radii
         reach_px = np.full(n + 1, reach * width)
@@ -442,6 +448,8 @@ def far_from_lights(
             # (scipy's exact Euclidean distance transform on the grid of cells)
             mine = (reach_px[groups] == k) & lights
             near |= ndimage.distance_transform_edt(~mine) * cell <= k
+    if at is not None:  # the events' cells, already counted for the lights
+        return ~near.ravel()[at.cid]
     return ~near[events["y"] // cell, events["x"] // cell]
 
 

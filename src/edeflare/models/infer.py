@@ -483,10 +483,9 @@ class ModelDeflarer:
     ) -> np.ndarray:
         """The events the far shift raises: far from every light, and neither where the
         lights' ghosts can be nor on their spikes (flare that reaches far)."""
-        far = far_from_lights(events, sensor_size, span, lights=lights)
-        if far.any():
-            cells = ghost_cells(events, sensor_size, span, lights=lights)
-            far &= ~cells[events["y"] // 8, events["x"] // 8] & ~spikes
+        ghosts = ghost_cells(events, sensor_size, span, lights=lights)
+        far = far_from_lights(events, sensor_size, span, lights=lights, exclude=ghosts)
+        far &= ~spikes
         return far
 
     def _run_mask(
