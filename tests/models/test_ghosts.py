@@ -48,6 +48,11 @@ def test_in_ghost_prior_reads_each_events_cell():
     cells = ghost_cells(ev, (64, 64), 20_000)
     np.testing.assert_array_equal(inside, cells[ev["y"] // 8, ev["x"] // 8])
     assert inside[np.isin(ev["x"], [60, 61])].all() and not inside[ev["x"] == 58].any()
+    # the cells, when given, are used as they are
+    np.testing.assert_array_equal(in_ghost_prior(ev, (64, 64), 20_000, cells=cells), inside)
+    only = np.zeros_like(cells)
+    only[7, 7] = True  # the cell of the events at (60, 60) and (61, 57)
+    assert in_ghost_prior(ev, (64, 64), 20_000, cells=only).sum() == 2
 
 
 def test_the_prior_covers_only_sparse_events_in_its_cells():

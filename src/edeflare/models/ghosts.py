@@ -232,10 +232,12 @@ def in_ghost_prior(
     cell: int = 8,
     lights: np.ndarray | None = None,
     max_neighbours: int | None = GHOST_MAX_NEIGHBOURS,
+    cells: np.ndarray | None = None,
 ) -> np.ndarray:
     """Whether each event of a window lies in its :func:`ghost_cells` and is sparse there.
 
-    ``lights`` is the window's :func:`light_cells`, when already counted. An event
+    ``lights`` is the window's :func:`light_cells`, when already counted, and ``cells``
+    its :func:`ghost_cells`, when already computed (from the same lights). An event
     counts as sparse where its 3x3 neighbourhood holds at most ``max_neighbours``
     events of the window, itself included (None: every event in the cells).
 
@@ -249,7 +251,8 @@ def in_ghost_prior(
     >>> in_ghost_prior(np.concatenate([ev, far]), (64, 64), 20_000)[-2:].tolist()
     [True, False]
     """
-    cells = ghost_cells(events, sensor_size, window_us, cell=cell, lights=lights)
+    if cells is None:
+        cells = ghost_cells(events, sensor_size, window_us, cell=cell, lights=lights)
     inside = cells[events["y"] // cell, events["x"] // cell]
     if max_neighbours is None or not inside.any():
         return inside

@@ -461,32 +461,27 @@ class ModelDeflarer:
             if not lights.any():
                 v += self.light_free_shift  # flare needs a source: keep more without one
                 continue
+            ghosts = None  # where the lights' ghosts can be: for the ghost prior and far shift
+            if self.ghost_shift or self.far_shift:
+                ghosts = ghost_cells(events, sensor_size, span, lights=lights)
             if self.ghost_shift:
-                v -= self.ghost_shift * in_ghost_prior(events, sensor_size, span, lights=lights)
+                v -= self.ghost_shift * in_ghost_prior(
+                    events, sensor_size, span, lights=lights, cells=ghosts
+                )
             if self.halo_shift:
                 v -= self.halo_shift * in_halo_prior(events, sensor_size, span, lights=lights)
             spikes = np.zeros(events.size, dtype=bool)
             if self.streak_shift or self.far_shift:
                 spikes = in_streak_prior(events, sensor_size, span, lights=lights)
-            v -= self.streak_shift * spikes
+            if self.streak_shift:
+                v -= self.streak_shift * spikes
             if self.far_shift:
-                v += self.far_shift * self._far(events, sensor_size, span, lights, spikes)
+                # far from every light, and neither where their ghosts can be nor on their
+                # spikes (the flare that reaches far)
+                far = far_from_lights(events, sensor_size, span, lights=lights, exclude=ghosts)
+                far &= ~spikes
+                v += self.far_shift * far
         return out
-
-    @staticmethod
-    def _far(
-        events: np.ndarray,
-        sensor_size: SensorSize,
-        span: int,
-        lights: np.ndarray,
-        spikes: np.ndarray,
-    ) -> np.ndarray:
-        """The events the far shift raises: far from every light, and neither where the
-        lights' ghosts can be nor on their spikes (flare that reaches far)."""
-        ghosts = ghost_cells(events, sensor_size, span, lights=lights)
-        far = far_from_lights(events, sensor_size, span, lights=lights, exclude=ghosts)
-        far &= ~spikes
-        return far
 
     def _run_mask(
         self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
