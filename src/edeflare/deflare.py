@@ -559,8 +559,9 @@ class ModelParams:
         metadata=cli_option(
             "--far-shift",
             "mask models: raise the keep logit by this much for the events far from every "
-            "light of their window (beyond 0.3 of the sensor's width, and not where the "
-            "lights' ghosts can be nor on their spikes: flare lies around its source; 0: off)",
+            "light of their window (beyond 0.3 of the sensor's width and 8 of the light's "
+            "radii, and not where the lights' ghosts can be nor on their spikes: flare lies "
+            "around its source; 0: off)",
             metavar="LOGIT",
             type=float,
             default_text="the model card's",
