@@ -186,3 +186,83 @@ def test_the_compiled_angle_runs_are_the_polar_bins_filled_and_followed(rng):
     assert run.max() == n_rings and (run > 20).sum() >= 3  # the three spikes, to the end
     # too few saturated pixels for a run of 60 rings: none followed
     assert not _angle_runs(sy, sx, 0, 30, cy, cx, reach, start, n_rings, 200.0).any()
+
+
+STAR_SIZE = (240, 240)
+STAR_C = 120  # the star's centre, x and y
+
+
+def _star(angles_deg, *, core=10, half_width=3, length=70, per_px=20) -> np.ndarray:
+    """A light whose spikes pass the light test themselves: a disc of radius ``core``
+    and arms ``2 half_width + 1`` px wide, ``length`` px from the centre, at the
+    ``angles_deg``, ``per_px`` events at every pixel."""
+    yy, xx = np.mgrid[: STAR_SIZE[1], : STAR_SIZE[0]]
+    dy, dx = yy - STAR_C, xx - STAR_C
+    on = np.hypot(dx, dy) <= core
+    for a in np.radians(angles_deg):
+        along = dx * np.cos(a) + dy * np.sin(a)
+        across = np.abs(-dx * np.sin(a) + dy * np.cos(a))
+        on |= (along >= 0) & (along <= length) & (across <= half_width)
+    y, x = np.nonzero(on)
+    n = per_px * x.size
+    return make_events(
+        np.arange(n) * 20_000 // n, np.tile(x, per_px), np.tile(y, per_px), np.ones(n)
+    )
+
+
+def _distance(ev: np.ndarray) -> np.ndarray:
+    return np.hypot(ev["x"] - STAR_C, ev["y"] - STAR_C)
+
+
+def test_a_star_bright_enough_to_be_the_light_loses_its_arms_and_keeps_its_centre():
+    star = _star([0, 60, 120, 180, 240, 300])
+    on = in_streak_prior(star, STAR_SIZE, 20_000)
+    r = _distance(star)
+    # its radius is the core's (the arms are narrower); the arms start 1.5 radii out
+    assert not on[r <= 12].any()
+    # nearly all of the arms (a few pixels fall in angle bins under the fill share)
+    assert on[(r > 25) & (r < 65)].mean() > 0.9
+
+
+def test_a_light_with_fewer_than_four_arms_keeps_them():
+    # a lamp's tube or a moving light's stroke: two ends, opposite each other
+    bar = _star([0, 180], half_width=6)
+    assert not in_streak_prior(bar, STAR_SIZE, 20_000).any()
+    three = _star([0, 120, 240])  # no arm has a partner
+    assert not in_streak_prior(three, STAR_SIZE, 20_000).any()
+
+
+def test_arms_inside_a_dense_scene_are_no_spikes():
+    # a cross of lines through a lit window of a facade: four arms in opposite pairs,
+    # but with the facade's saturated pixels at the angles between them
+    cross = _star([0, 90, 180, 270])
+    yy, xx = np.mgrid[STAR_C - 80 : STAR_C + 80 : 2, STAR_C - 80 : STAR_C + 80 : 2]
+    n = 2 * xx.size
+    facade = make_events(
+        np.arange(n) * 20_000 // n, np.tile(xx.ravel(), 2), np.tile(yy.ravel(), 2), np.zeros(n)
+    )
+    assert in_streak_prior(cross, STAR_SIZE, 20_000).any()  # alone, it is a star
+    ev = merge_events(cross, facade)
+    assert not in_streak_prior(ev, STAR_SIZE, 20_000)[np.isin(ev, cross)].any()
+
+
+def test_arm_angles_need_partners_and_dark_flanks():
+    from edeflare.models.streaks import ANGLE_BINS, _arms
+
+    run = np.zeros(ANGLE_BINS, dtype=np.int64)
+    arms = [0, 40, 80, 120, 160, 200]  # six arms 60 degrees apart, 5 bins wide
+    for a in arms:
+        run[a : a + 5] = 20
+    got = _arms(run, run, 5.0)
+    np.testing.assert_array_equal(np.flatnonzero(got), np.flatnonzero(run))
+    # the saturated pixels fill the angles between the arms: no spike stands out
+    assert not _arms(run, np.full(ANGLE_BINS, 15), 5.0).any()
+    # three arms, none opposite another
+    three = np.zeros(ANGLE_BINS, dtype=np.int64)
+    for a in (0, 80, 160):
+        three[a : a + 5] = 20
+    assert not _arms(three, three, 5.0).any()
+    # an arm wider than ARM_MAX_DEG (60 degrees: 40 bins) is the body of something
+    wide = run.copy()
+    wide[0:45] = 20
+    assert not _arms(wide, wide, 5.0)[0:45].any()

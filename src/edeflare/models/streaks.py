@@ -26,7 +26,20 @@ the start, across gaps of at most ``MAX_GAP_BINS`` rings. An angle is a spike wh
 - the opposite angle (within ``PAIR_TOLERANCE_BINS`` bins) is a spike too, unless
   the sensor's border cuts the opposite direction off before a spike could be seen.
 
-The prior is the events in the pixels of each spike angle up to the end of its run.
+Where the spikes are bright enough to pass the light test themselves, the light's own
+pixels are a star, its edge is a spike's tip, and nothing lies beyond it to search. So
+for a light that is not round (more than ``ROUND_AREA`` discs of its radius) the same
+runs are also made of its own pixels from ``ARM_ROOT_RADII`` radii out: its *arms* are
+the runs of adjacent angles reaching ``ARM_LENGTH_RADII`` radii further, at most
+``ARM_MAX_DEG`` wide, standing out of their flanks as a spike does (``FLANK_FACTOR``
+times the saturated runs there: a lit facade's grid of windows around a light fills
+them), each with a saturated run as long within ``ARM_PAIR_DEG`` of the opposite
+direction. A star has at least ``ARM_MIN`` arms; a lamp's tube or a moving light's
+stroke has two ends at most, and keeps them. (``experiments/rsim-gap/README.md``: on
+``eflare-r-sim`` most of the flare the default kept was in such lights.)
+
+The prior is the events in the pixels of each spike angle (and arm) up to the end of
+its run.
 :class:`~edeflare.models.infer.ModelDeflarer` lowers their keep logit by the card's
 ``streak_shift``. The measurements behind the constants: ``experiments/streaks/README.md``.
 """
@@ -77,6 +90,11 @@ FLANK_GAP_BINS = 3
 FLANK_FACTOR = 2.0
 PAIR_TOLERANCE_BINS = 2
 ROUND_AREA = 2.0  # a round light's area is at most this many discs of its radius
+ARM_ROOT_RADII = 1.5  # a light's arms are its pixels beyond this many radii from its centre
+ARM_MIN = 4  # a star has at least this many arms
+ARM_MAX_DEG = 60.0  # an arm is at most this wide, seen from the light's centre
+ARM_LENGTH_RADII = 1.5  # an arm reaches at least this many radii out from its root
+ARM_PAIR_DEG = 15.0  # an arm's partner points within this many degrees of opposite
 
 
 @numba.njit(cache=True, nogil=True)
@@ -206,6 +224,72 @@ def _polar_bins(
     return ok, ring[ok], tb
 
 
+def _arms(run: np.ndarray, sat_run: np.ndarray, need: float) -> np.ndarray:
+    """The arm angles of a light that is not round, from its own pixels' runs ``run``
+    and the saturated pixels' ``sat_run`` (rings, from ``ARM_ROOT_RADII`` radii out):
+    its own runs of at least ``need`` rings at adjacent angles make one arm, at most
+    ``ARM_MAX_DEG`` wide, with a saturated run as long within ``ARM_PAIR_DEG`` of the
+    opposite direction (a spike's partner can be a light of its own). A star has at
+    least ``ARM_MIN`` arms; a lamp's tube or a moving light's stroke has two ends at
+    most, and keeps them. All False otherwise."""
+    nb = run.size
+    far = run >= need
+    # an arm along a row or column can leave its middle angle bin empty at small radii
+    # (pixels sit on one side of the bin's edge): gaps of up to three bins are bridged
+    far |= (np.roll(far, 1) | np.roll(far, 2)) & (np.roll(far, -1) | np.roll(far, -2))
+    if far.all() or far.sum() < ARM_MIN:
+        return np.zeros(nb, dtype=bool)
+    # label the runs of far angles around the circle, starting after a near one
+    order = (int(np.argmin(far)) + np.arange(nb)) % nb
+    f = far[order]
+    begins = f & ~np.r_[False, f[:-1]]
+    label = np.where(f, np.cumsum(begins), 0)
+    n = int(label.max())
+    widths = np.bincount(label, minlength=n + 1)[1:]
+    centres = (order[np.flatnonzero(begins)] + (widths - 1) / 2.0) % nb
+    tol = round(ARM_PAIR_DEG * nb / 360.0)
+    opposite = np.round(centres + nb / 2.0).astype(np.int64)
+    sat_far = sat_run >= need
+    partner = sat_far[(opposite[:, None] + np.arange(-tol, tol + 1)[None, :]) % nb].any(axis=1)
+    # a spike stands out of the dark between spikes: the saturated runs on each flank
+    # (FLANK_GAP_BINS to LOCAL_HALF_BINS angles beyond its own) are short against it; a
+    # dense scene around a light (a lit facade's grid of windows) has long runs there too
+    firsts = order[np.flatnonzero(begins)]
+    side = np.arange(FLANK_GAP_BINS, LOCAL_HALF_BINS + 1)
+    left = np.median(sat_run[(firsts[:, None] - side[None, :]) % nb], axis=1)
+    right = np.median(sat_run[(firsts[:, None] + widths[:, None] - 1 + side[None, :]) % nb], axis=1)
+    length = np.zeros(n + 1)
+    np.maximum.at(length, label, run[order])
+    stands = length[1:] >= need + FLANK_FACTOR * np.maximum(left, right)
+    arm = (widths * 360.0 / nb <= ARM_MAX_DEG) & partner & stands
+    if arm.sum() < ARM_MIN:
+        return np.zeros(nb, dtype=bool)
+    out = np.zeros(nb, dtype=bool)
+    out[order] = np.r_[False, arm][label]
+    return out
+
+
+def _mark(
+    on: np.ndarray,
+    width: int,
+    pixels: tuple[np.ndarray, np.ndarray],
+    centre: tuple[float, float],
+    start: float,
+    n_rings: int,
+    angles: np.ndarray,
+    run: np.ndarray,
+) -> None:
+    """Set ``on`` (flat, the sensor's pixels) at the ``pixels`` (``(ys, xs)`` with events,
+    sorted by row) in the ``angles`` around ``centre``, out to each angle's ``run``
+    (rings from ``start``)."""
+    cy, cx = centre
+    far = start + RADIAL_BIN_PX * float(run[angles].max())
+    near_y, near_x = _near(*pixels, cy, cx, far)
+    ok, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
+    hit = angles[tb] & (ring < run[tb])
+    on[near_y[ok][hit] * width + near_x[ok][hit]] = True
+
+
 def _rows(ys: np.ndarray, cy: float, reach: float) -> tuple[int, int]:
     """The slice of ``ys`` (sorted) within ``reach`` rows of ``cy``."""
     lo, hi = np.searchsorted(ys, [cy - reach, cy + reach + 1])
@@ -259,21 +343,35 @@ def in_streak_prior(
     # pixels with events are judged (not each event) where one is found
     pixel, n_px = at.pixel, at.counts.ravel()
     sat_y, sat_x = np.divmod(np.flatnonzero(n_px >= MIN_PIXEL_EVENTS), width)
-    any_y = any_x = None  # the pixels with events: wanted only once a spike is found
+    pixels = None  # the pixels with events: wanted only once a spike is found
     on_spike = np.zeros(width * height, dtype=bool)
     angle = (np.arange(ANGLE_BINS) + 0.5) / ANGLE_BINS * 2 * math.pi - math.pi
     cos, sin = np.cos(angle), np.sin(angle)
     for ys, xs, own, radius in found:
         cy, cx, edge = _centre(own, ys.start, xs.start)
         reach = STREAK_EXTENT * radius
+        rows = _rows(sat_y, cy, reach)
+        if own.sum() > ROUND_AREA * math.pi * radius**2:
+            # a star: spikes bright enough to be part of the light
+            start = ARM_ROOT_RADII * radius
+            n_rings = math.ceil((reach - start) / RADIAL_BIN_PX)
+            need = ARM_LENGTH_RADII * radius / RADIAL_BIN_PX
+            own_y, own_x = np.nonzero(own)
+            own_y, own_x = own_y + ys.start, own_x + xs.start
+            run = _angle_runs(own_y, own_x, 0, own_y.size, cy, cx, reach, start, n_rings, need)
+            sat_run = _angle_runs(sat_y, sat_x, *rows, cy, cx, reach, start, n_rings, need)
+            arms = _arms(run, sat_run, need)
+            if arms.any():
+                run = np.maximum(run, sat_run)  # out to the spike's end, past the light
+                if pixels is None:
+                    pixels = np.divmod(np.flatnonzero(n_px), width)
+                _mark(on_spike, width, pixels, (cy, cx), start, n_rings, arms, run)
         start = edge + 2.0 + SKIP_RADII * radius
         n_rings = math.ceil((reach - start) / RADIAL_BIN_PX)
         if n_rings < 2:
             continue
         need = max(MIN_LENGTH_RADII * radius, MIN_LENGTH_PX) / RADIAL_BIN_PX
-        run = _angle_runs(
-            sat_y, sat_x, *_rows(sat_y, cy, reach), cy, cx, reach, start, n_rings, need
-        )
+        run = _angle_runs(sat_y, sat_x, *rows, cy, cx, reach, start, n_rings, need)
         if run.max() < need:
             continue
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -283,14 +381,9 @@ def in_streak_prior(
         spike = _spikes(run, need, room)
         if not spike.any():
             continue
-        # the pixels with events out to the longest spike's end
-        far = start + RADIAL_BIN_PX * float(run[spike].max())
-        if any_y is None:
-            any_y, any_x = np.divmod(np.flatnonzero(n_px), width)
-        near_y, near_x = _near(any_y, any_x, cy, cx, far)
-        ok, ring, tb = _polar_bins(near_x - cx, near_y - cy, start, n_rings)
-        hit = spike[tb] & (ring < run[tb])
-        on_spike[near_y[ok][hit] * width + near_x[ok][hit]] = True
+        if pixels is None:
+            pixels = np.divmod(np.flatnonzero(n_px), width)
+        _mark(on_spike, width, pixels, (cy, cx), start, n_rings, spike, run)
     # no round light is on a spike: a spike runs on through the lights in its way
     # (another lamp of a row, or its own source seen from a segment of the spike
     # that passes the light test itself); those segments are long, not round
