@@ -75,7 +75,7 @@ MIN_PIXEL_EVENTS = 2
 again; the single scattered events along real streaks are the network's and the halo
 prior's to judge."""
 
-FILL_SHARE = 0.3
+FILL_SHARE = 0.2
 """The share of a bin's area that saturated pixels must cover for it to be filled. A
 share, not a count: rings far from the light have large bins, and a dense scene would
 fill a count there at any angle."""
@@ -269,6 +269,16 @@ def _arms(run: np.ndarray, sat_run: np.ndarray, need: float) -> np.ndarray:
     return out
 
 
+def _core(own: np.ndarray) -> tuple[float, float]:
+    """The centre of a light's largest inscribed disc (the mean of the pixels deepest in
+    ``own``, within half a pixel), in its box."""
+    from scipy import ndimage
+
+    depth = ndimage.distance_transform_edt(np.pad(own, 1))[1:-1, 1:-1]
+    py, px = np.nonzero(depth >= depth.max() - 0.5)
+    return float(py.mean()), float(px.mean())
+
+
 def _mark(
     on: np.ndarray,
     width: int,
@@ -352,20 +362,24 @@ def in_streak_prior(
         reach = STREAK_EXTENT * radius
         rows = _rows(sat_y, cy, reach)
         if own.sum() > ROUND_AREA * math.pi * radius**2:
-            # a star: spikes bright enough to be part of the light
+            # a star: spikes bright enough to be part of the light, measured from its
+            # core (the mean of its pixels leans towards its longer arms)
+            ay, ax = _core(own)
+            ay, ax = ay + ys.start, ax + xs.start
             start = ARM_ROOT_RADII * radius
             n_rings = math.ceil((reach - start) / RADIAL_BIN_PX)
             need = ARM_LENGTH_RADII * radius / RADIAL_BIN_PX
             own_y, own_x = np.nonzero(own)
             own_y, own_x = own_y + ys.start, own_x + xs.start
-            run = _angle_runs(own_y, own_x, 0, own_y.size, cy, cx, reach, start, n_rings, need)
-            sat_run = _angle_runs(sat_y, sat_x, *rows, cy, cx, reach, start, n_rings, need)
+            run = _angle_runs(own_y, own_x, 0, own_y.size, ay, ax, reach, start, n_rings, need)
+            arm_rows = _rows(sat_y, ay, reach)
+            sat_run = _angle_runs(sat_y, sat_x, *arm_rows, ay, ax, reach, start, n_rings, need)
             arms = _arms(run, sat_run, need)
             if arms.any():
                 run = np.maximum(run, sat_run)  # out to the spike's end, past the light
                 if pixels is None:
                     pixels = np.divmod(np.flatnonzero(n_px), width)
-                _mark(on_spike, width, pixels, (cy, cx), start, n_rings, arms, run)
+                _mark(on_spike, width, pixels, (ay, ax), start, n_rings, arms, run)
         start = edge + 2.0 + SKIP_RADII * radius
         n_rings = math.ceil((reach - start) / RADIAL_BIN_PX)
         if n_rings < 2:
