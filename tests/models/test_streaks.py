@@ -268,3 +268,14 @@ def test_arm_angles_need_partners_and_dark_flanks():
     wide = run.copy()
     wide[0:45] = 20
     assert not _arms(wide, wide, 5.0)[0:45].any()
+
+
+def test_a_lights_core_is_its_inscribed_discs_centre_not_its_mean():
+    from edeflare.models.streaks import _centre, _core
+
+    yy, xx = np.mgrid[:60, :120]
+    own = np.hypot(yy - 30, xx - 30) <= 10  # a disc at (30, 30)
+    own |= (np.abs(yy - 30) <= 2) & (xx >= 30) & (xx < 110)  # and one long arm to the right
+    cy, cx = _core(own)
+    assert (cy, cx) == (30.0, 30.0)
+    assert _centre(own, 0, 0)[1] > 40  # the mean of its pixels leans towards the arm
