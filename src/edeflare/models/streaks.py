@@ -29,14 +29,15 @@ the start, across gaps of at most ``MAX_GAP_BINS`` rings. An angle is a spike wh
 Where the spikes are bright enough to pass the light test themselves, the light's own
 pixels are a star, its edge is a spike's tip, and nothing lies beyond it to search. So
 for a light that is not round (more than ``ROUND_AREA`` discs of its radius) the same
-runs are also made of its own pixels from ``ARM_ROOT_RADII`` radii out: its *arms* are
-the runs of adjacent angles reaching ``ARM_LENGTH_RADII`` radii further, at most
-``ARM_MAX_DEG`` wide, standing out of their flanks as a spike does (``FLANK_FACTOR``
-times the saturated runs there: a lit facade's grid of windows around a light fills
-them), each with a saturated run as long within ``ARM_PAIR_DEG`` of the opposite
-direction. A star has at least ``ARM_MIN`` arms; a lamp's tube or a moving light's
-stroke has two ends at most, and keeps them. (``experiments/rsim-gap/README.md``: on
-``eflare-r-sim`` most of the flare the default kept was in such lights.)
+runs are also made of its own pixels, from ``ARM_ROOT_RADII`` radii out from its core
+(the centre of its largest inscribed disc). Its *arms* are the runs of adjacent angles
+that reach ``ARM_LENGTH_RADII`` radii further, are at most ``ARM_MAX_DEG`` wide, stand
+out of their flanks as a spike does (``FLANK_FACTOR`` times the saturated runs there: a
+lit facade's grid of windows around a light fills them), and have a saturated run as
+long within ``ARM_PAIR_DEG`` of the opposite direction. A star has at least
+``ARM_MIN`` arms; a lamp's tube or a moving light's stroke has two ends at most, and
+keeps them. (``experiments/rsim-gap/README.md``: on ``eflare-r-sim`` a third of the
+flare the default kept lay in its lights' own pixels, mostly such stars.)
 
 The prior is the events in the pixels of each spike angle (and arm) up to the end of
 its run.
@@ -50,6 +51,7 @@ import math
 
 import numba
 import numpy as np
+from scipy import ndimage
 
 from ..events import SensorSize, check_sensor_size
 from .ghosts import check_logit_shift
@@ -90,7 +92,7 @@ FLANK_GAP_BINS = 3
 FLANK_FACTOR = 2.0
 PAIR_TOLERANCE_BINS = 2
 ROUND_AREA = 2.0  # a round light's area is at most this many discs of its radius
-ARM_ROOT_RADII = 1.5  # a light's arms are its pixels beyond this many radii from its centre
+ARM_ROOT_RADII = 1.5  # a light's arms are its pixels beyond this many radii from its core
 ARM_MIN = 4  # a star has at least this many arms
 ARM_MAX_DEG = 60.0  # an arm is at most this wide, seen from the light's centre
 ARM_LENGTH_RADII = 1.5  # an arm reaches at least this many radii out from its root
@@ -272,8 +274,6 @@ def _arms(run: np.ndarray, sat_run: np.ndarray, need: float) -> np.ndarray:
 def _core(own: np.ndarray) -> tuple[float, float]:
     """The centre of a light's largest inscribed disc (the mean of the pixels deepest in
     ``own``, within half a pixel), in its box."""
-    from scipy import ndimage
-
     depth = ndimage.distance_transform_edt(np.pad(own, 1))[1:-1, 1:-1]
     py, px = np.nonzero(depth >= depth.max() - 0.5)
     return float(py.mean()), float(px.mean())
