@@ -30,7 +30,7 @@ REGIONS = ("light-free", "light", "spike", "halo", "ghost", "far", "near")
 
 def regions(inp: np.ndarray, size: tuple[int, int], start: int) -> np.ndarray:
     """Each input event's region index (into REGIONS), window by window."""
-    out = np.zeros(inp.size, dtype=np.int8)
+    out = np.zeros(inp.size, dtype=np.int8)  # 0: light-free, what a window without a light keeps
     t = inp["t"]
     for s in range(start, int(t[-1]) + 1, WIN_US):
         a, b = np.searchsorted(t, [s, s + WIN_US])
@@ -40,7 +40,6 @@ def regions(inp: np.ndarray, size: tuple[int, int], start: int) -> np.ndarray:
         span = covered_us(ev, s, WIN_US)
         lights = window_lights(ev, size, span)
         if not lights.any():
-            out[a:b] = 0
             continue
         labels, _ = light_pixels(ev, size, span)
         own = (labels[ev["y"], ev["x"]] > 0) & lights[ev["y"] // 8, ev["x"] // 8]

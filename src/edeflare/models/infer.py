@@ -470,17 +470,16 @@ class ModelDeflarer:
                 )
             if self.halo_shift:
                 v -= self.halo_shift * in_halo_prior(events, sensor_size, span, lights=lights)
-            spikes = np.zeros(events.size, dtype=bool)
-            if self.streak_shift or self.far_shift:
-                spikes = in_streak_prior(events, sensor_size, span, lights=lights)
+            if not (self.streak_shift or self.far_shift):
+                continue
+            spikes = in_streak_prior(events, sensor_size, span, lights=lights)
             if self.streak_shift:
                 v -= self.streak_shift * spikes
             if self.far_shift:
                 # far from every light, and neither where their ghosts can be nor on their
                 # spikes (the flare that reaches far)
                 far = far_from_lights(events, sensor_size, span, lights=lights, exclude=ghosts)
-                far &= ~spikes
-                v += self.far_shift * far
+                v += self.far_shift * (far & ~spikes)
         return out
 
     def _run_mask(

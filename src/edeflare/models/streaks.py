@@ -248,7 +248,8 @@ def _arms(run: np.ndarray, sat_run: np.ndarray, need: float) -> np.ndarray:
     label = np.where(f, np.cumsum(begins), 0)
     n = int(label.max())
     widths = np.bincount(label, minlength=n + 1)[1:]
-    centres = (order[np.flatnonzero(begins)] + (widths - 1) / 2.0) % nb
+    firsts = order[np.flatnonzero(begins)]  # each run's first angle
+    centres = (firsts + (widths - 1) / 2.0) % nb
     tol = round(ARM_PAIR_DEG * nb / 360.0)
     opposite = np.round(centres + nb / 2.0).astype(np.int64)
     sat_far = sat_run >= need
@@ -256,7 +257,6 @@ def _arms(run: np.ndarray, sat_run: np.ndarray, need: float) -> np.ndarray:
     # a spike stands out of the dark between spikes: the saturated runs on each flank
     # (FLANK_GAP_BINS to LOCAL_HALF_BINS angles beyond its own) are short against it; a
     # dense scene around a light (a lit facade's grid of windows) has long runs there too
-    firsts = order[np.flatnonzero(begins)]
     side = np.arange(FLANK_GAP_BINS, LOCAL_HALF_BINS + 1)
     left = np.median(sat_run[(firsts[:, None] - side[None, :]) % nb], axis=1)
     right = np.median(sat_run[(firsts[:, None] + widths[:, None] - 1 + side[None, :]) % nb], axis=1)
