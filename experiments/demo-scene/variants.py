@@ -2,9 +2,10 @@
 (``edeflare demo``'s sequence) de-flared by the default with other parameters.
 
 Each argument is one variant: comma-separated ``name=value`` parameters of the model
-method (``-`` for the default). Per variant: the flare removed and the true events kept
-(:func:`edeflare.eval.metrics.deletion_shares`), then the true events split into the
-scene's (the ground truth's events in the sequence's ``background``) and the light's.
+method (``-`` for the default; ``weights=PATH`` for other weights). Per variant: the
+flare removed and the true events kept (:func:`edeflare.eval.metrics.deletion_shares`),
+then the true events split into the scene's (the ground truth's events in the
+sequence's ``background``) and the light's.
 """
 
 import sys
@@ -27,7 +28,7 @@ scene = np.isin(event_keys(gt, size), event_keys(seq.streams["background"], size
 print(f"{inp.size} input events, {gt.size} to keep ({scene.sum()} of the scene)", flush=True)
 for arg in sys.argv[1:] or ["-"]:
     params = {} if arg == "-" else {
-        k: float(v) for k, v in (kv.split("=") for kv in arg.split(","))
+        k: v if k == "weights" else float(v) for k, v in (kv.split("=") for kv in arg.split(","))
     }  # fmt: skip
     out = deflare(inp, size, "model", **params)
     removed, kept = deletion_shares(inp, gt, out, size)
