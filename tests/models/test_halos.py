@@ -318,7 +318,7 @@ def test_a_window_without_a_light_has_its_logits_raised_by_the_light_free_shift(
     np.testing.assert_array_equal(l1, l0)  # a light in the window: no change
     with pytest.raises(ParameterError, match="light_free_shift"):
         ModelDeflarer(weights, light_free_shift=-1.0)
-    assert create_method("model").params["light_free_shift"] is None  # the card's: 3
+    assert create_method("model").params["light_free_shift"] is None  # the card's: 4
 
 
 def test_far_from_the_lights_is_beyond_a_share_of_the_width_and_radii_from_every_light():
