@@ -52,7 +52,9 @@ def test_info_prints_a_weights_files_card(tmp_path, capsys):
     assert main(["info", "night"]) == 0  # a bundled model, by name
     out = capsys.readouterr().out
     assert "preset      mask.pixel (8 bins, 20 ms windows)" in out
-    priors = "halo_shift 3, ghost_shift 3, streak_shift 8, light_free_shift 4, far_shift 4"
+    priors = (
+        "halo_shift 3, ghost_shift 3, streak_shift 8, light_free_shift 4 (support 2), far_shift 4"
+    )
     assert f"priors      {priors}" in out
     assert "keep        probability > 0.4" in out
     assert "score_davis_lamps_combined 0.872" in out

@@ -554,6 +554,18 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    light_free_support: int | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--light-free-support",
+            "mask models: the light-free shift raises only the events with at least this many "
+            "other events of their window in their 5x5 square (a night lamp too slow for the "
+            "light test scatters isolated events; 0: every event)",
+            metavar="N",
+            type=int,
+            default_text="the model card's",
+        ),
+    )
     far_shift: float | None = dataclasses.field(
         default=None,
         metadata=cli_option(
@@ -751,9 +763,10 @@ class ModelMethod(Method):
         halo_shift: float | None = None,
         streak_shift: float | None = None,
         light_free_shift: float | None = None,
+        light_free_support: int | None = None,
         far_shift: float | None = None,
     ) -> None:
-        from .models.ghosts import check_ghost_shift, check_logit_shift
+        from .models.ghosts import check_ghost_shift, check_logit_shift, check_support
         from .models.halos import check_halo_shift
         from .models.infer import DECODERS, RUNTIMES, resolve_weights
         from .models.streaks import check_streak_shift
@@ -773,6 +786,8 @@ class ModelMethod(Method):
             streak_shift = check_streak_shift(streak_shift)
         if light_free_shift is not None:
             light_free_shift = check_logit_shift(light_free_shift, "light_free_shift")
+        if light_free_support is not None:
+            light_free_support = check_support(light_free_support, "light_free_support")
         if far_shift is not None:
             far_shift = check_logit_shift(far_shift, "far_shift")
         if (
@@ -813,6 +828,7 @@ class ModelMethod(Method):
             halo_shift=halo_shift,
             streak_shift=streak_shift,
             light_free_shift=light_free_shift,
+            light_free_support=light_free_support,
             far_shift=far_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
@@ -837,6 +853,7 @@ class ModelMethod(Method):
                 halo_shift=p["halo_shift"],
                 streak_shift=p["streak_shift"],
                 light_free_shift=p["light_free_shift"],
+                light_free_support=p["light_free_support"],
                 far_shift=p["far_shift"],
             )
         deflarer = self._deflarers[seed]

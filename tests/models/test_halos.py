@@ -11,6 +11,7 @@ from edeflare.deflare import create_method
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
 from edeflare.models import create_model
+from edeflare.models.flaremask import event_support
 from edeflare.models.ghosts import ghost_cells, in_ghost_prior, light_cells
 from edeflare.models.halos import (
     FAR_RADII,
@@ -311,7 +312,7 @@ def test_a_window_without_a_light_has_its_logits_raised_by_the_light_free_shift(
     dark = random_events(rng, 300, SIZE, t0=0, span_us=20_000)
     lit = merge_events(_block(40, 20), random_events(rng, 300, SIZE, t0=0, span_us=20_000))
     plain = ModelDeflarer(weights, light_free_shift=0.0)
-    raised = ModelDeflarer(weights, light_free_shift=1.5)
+    raised = ModelDeflarer(weights, light_free_shift=1.5, light_free_support=0)
     batch = [(0, dark), (0, lit)]
     (d0, l0), (d1, l1) = plain.window_logits(batch, SIZE), raised.window_logits(batch, SIZE)
     np.testing.assert_allclose(d1 - d0, 1.5, atol=1e-9)  # every event, by the shift
@@ -319,6 +320,28 @@ def test_a_window_without_a_light_has_its_logits_raised_by_the_light_free_shift(
     with pytest.raises(ParameterError, match="light_free_shift"):
         ModelDeflarer(weights, light_free_shift=-1.0)
     assert create_method("model").params["light_free_shift"] is None  # the card's: 4
+
+
+def test_the_light_free_shift_raises_only_the_events_with_support_in_their_5x5_square(rng):
+    weights = bundled_weights()
+    # no light: a 3x3 patch of nine events (each has 8 others within 2 px), a pair two
+    # pixels apart (1 each), a pair three apart (0: outside the 5x5 square), a lone event
+    xs = [40, 41, 42, 40, 41, 42, 40, 41, 42, 100, 102, 150, 153, 10]
+    ys = [30, 30, 30, 31, 31, 31, 32, 32, 32, 50, 52, 20, 20, 60]
+    dark = make_events(np.arange(len(xs)) * 1_000, xs, ys, np.arange(len(xs)) % 2)
+    np.testing.assert_array_equal(event_support(dark, SIZE), [8] * 9 + [1, 1, 0, 0, 0])
+    plain = ModelDeflarer(weights, light_free_shift=0.0)
+    base = plain.window_logits([(0, dark)], SIZE)[0]
+    for support, raised in ((0, 14), (1, 11), (2, 9), (9, 0)):
+        d = ModelDeflarer(weights, light_free_shift=2.0, light_free_support=support)
+        delta = d.window_logits([(0, dark)], SIZE)[0] - base
+        np.testing.assert_allclose(delta[:raised], 2.0, atol=1e-9)
+        np.testing.assert_allclose(delta[raised:], 0.0, atol=1e-9)
+    for bad in (-1, 1.5, True, float("nan")):
+        with pytest.raises(ParameterError, match="light_free_support"):
+            ModelDeflarer(weights, light_free_support=bad)
+    assert create_method("model").params["light_free_support"] is None  # the card's: 2
+    assert ModelDeflarer(weights).light_free_support == 2
 
 
 def test_far_from_the_lights_is_beyond_a_share_of_the_width_and_radii_from_every_light():
@@ -382,7 +405,7 @@ def test_the_far_shift_raises_the_events_far_from_the_lights_outside_their_ghost
     # a window without a light gets the light-free shift only
     dark = scatter[scatter["x"] >= 100]
     only_far = ModelDeflarer(weights, far_shift=2.5, light_free_shift=0.0)
-    both = ModelDeflarer(weights, far_shift=2.5, light_free_shift=1.0)
+    both = ModelDeflarer(weights, far_shift=2.5, light_free_shift=1.0, light_free_support=0)
     (d0,), (d1,) = only_far.window_logits([(0, dark)], SIZE), both.window_logits([(0, dark)], SIZE)
     np.testing.assert_allclose(d1 - d0, 1.0, atol=1e-9)
     with pytest.raises(ParameterError, match="far_shift"):
@@ -407,7 +430,8 @@ def test_dense_scene_and_hot_pixels_are_no_lights_and_get_the_light_free_shift(r
     dark = merge_events(texture, hot, random_events(rng, 300, SIZE, t0=0, span_us=20_000))
     assert not window_lights(dark, SIZE, 20_000).any()
     plain = ModelDeflarer(weights, light_free_shift=0.0).window_logits([(0, dark)], SIZE)[0]
-    raised = ModelDeflarer(weights, light_free_shift=1.5).window_logits([(0, dark)], SIZE)[0]
+    raised = ModelDeflarer(weights, light_free_shift=1.5, light_free_support=0)
+    raised = raised.window_logits([(0, dark)], SIZE)[0]
     np.testing.assert_allclose(raised - plain, 1.5, atol=1e-9)
 
 

@@ -78,8 +78,9 @@ def _card(path: Path) -> int:
         print(f"keep        probability > {card.keep_threshold:g}")
         print(
             f"priors      halo_shift {card.halo_shift:g}, ghost_shift {card.ghost_shift:g}, "
-            f"streak_shift {card.streak_shift:g}, light_free_shift {card.light_free_shift:g}, "
-            f"far_shift {card.far_shift:g}"
+            f"streak_shift {card.streak_shift:g}, light_free_shift {card.light_free_shift:g}"
+            + (f" (support {card.light_free_support})" if card.light_free_support else "")
+            + f", far_shift {card.far_shift:g}"
         )
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")

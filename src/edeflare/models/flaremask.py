@@ -55,6 +55,7 @@ __all__ = [
     "event_keep_logits",
     "event_keep_mask",
     "event_pixel_features",
+    "event_support",
     "keep_logit_threshold",
     "keep_loss",
 ]
@@ -485,6 +486,31 @@ def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np
     on, total, _, _ = _frames(width, height)
     counts = _pixel_counts(events["x"], events["y"], events["p"], on, total, width, height)
     return np.log1p(counts.astype(np.float64))
+
+
+def event_support(events: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarray:
+    """How many other events of the window fired in each event's 5x5 square (``int64``).
+
+    The window's own events, both polarities, the event's pixel included (its other
+    events there count): the sum of the refinement's four counts
+    (:data:`PIXEL_FEATURES`) less the event itself. An isolated event, as the
+    scattered light of a night lamp fires them along its streaks, has 0; an event on
+    a moving edge has its neighbours along the edge.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([0, 1, 2, 3], [1, 1, 3, 9], [1, 1, 2, 9], [1, 0, 1, 1])
+    >>> event_support(ev, (12, 12)).tolist()   # (1, 1) twice, (3, 2) two away, (9, 9) alone
+    [2, 2, 2, 0]
+    """
+    width, height = int(sensor_size[0]), int(sensor_size[1])
+    x, y = events["x"], events["y"]
+    if events.size and (int(x.max()) >= width or int(y.max()) >= height):
+        raise ValueError(f"events lie outside the {width}x{height} sensor")
+    on, total, _, _ = _frames(width, height)
+    counts = _pixel_counts(x, y, events["p"], on, total, width, height)
+    return counts.sum(axis=1) - 1
 
 
 def keep_logit_threshold(threshold: float) -> float:

@@ -40,6 +40,7 @@ __all__ = [
     "LIGHT_RATE",
     "check_ghost_shift",
     "check_logit_shift",
+    "check_support",
     "covered_us",
     "ghost_cells",
     "in_ghost_prior",
@@ -310,6 +311,29 @@ def check_logit_shift(value: object, name: str) -> float:
     ):
         raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
     return float(value)
+
+
+def check_support(value: object, name: str) -> int:
+    """A count of neighbouring events ``name`` as an int, or a ParameterError: whole, >= 0.
+
+    Examples
+    --------
+    >>> check_support(2.0, "light_free_support")
+    2
+    >>> check_support(1.5, "light_free_support")
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: light_free_support must be a whole number >= 0, got 1.5
+    """
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not math.isfinite(value)
+        or value < 0
+        or value != int(value)
+    ):
+        raise ParameterError(f"{name} must be a whole number >= 0, got {value!r}")
+    return int(value)
 
 
 def check_ghost_shift(value: object) -> float:

@@ -36,10 +36,17 @@ from ..events import EVENT_DTYPE, SensorSize, check_events, select_events
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
-from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
+from .flaremask import (
+    FlareMaskNet,
+    event_features,
+    event_keep_logits,
+    event_support,
+    keep_logit_threshold,
+)
 from .ghosts import (
     check_ghost_shift,
     check_logit_shift,
+    check_support,
     covered_us,
     ghost_cells,
     in_ghost_prior,
@@ -216,6 +223,14 @@ class ModelDeflarer:
         :func:`~edeflare.models.halos.window_lights`): flare needs a bright source, and
         without one what the network would drop is more likely scene. Default: the
         model card's (0, off, unless the card says otherwise).
+    light_free_support : int, optional
+        Mask models: the light-free shift raises only the events with at least this
+        many other events of their window in their 5x5 square
+        (:func:`~edeflare.models.flaremask.event_support`); the isolated rest is left to
+        the network. A night lamp that fires too slowly to pass the light test (a
+        still LED lamp, not a flickering one) still scatters its light into sparse,
+        isolated events along streaks and rings; a scene's events come in edges.
+        Default: the model card's (0: every event, unless the card says otherwise).
     far_shift : float, optional
         Mask models: how much higher (in logit units) the keep logit of an event is
         in a window with lights where it is far from all of them
@@ -251,6 +266,7 @@ class ModelDeflarer:
         halo_shift: float | None = None,
         streak_shift: float | None = None,
         light_free_shift: float | None = None,
+        light_free_support: int | None = None,
         far_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
@@ -302,6 +318,8 @@ class ModelDeflarer:
         self.streak_shift = check_streak_shift(shift)
         shift = card.light_free_shift if light_free_shift is None else light_free_shift
         self.light_free_shift = check_logit_shift(shift, "light_free_shift")
+        support = card.light_free_support if light_free_support is None else light_free_support
+        self.light_free_support = check_support(support, "light_free_support")
         shift = card.far_shift if far_shift is None else far_shift
         self.far_shift = check_logit_shift(shift, "far_shift")
         for name in ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift"):
@@ -459,7 +477,13 @@ class ModelDeflarer:
             span = covered_us(events, start, w)
             lights = window_lights(events, sensor_size, span)  # counted once for all priors
             if not lights.any():
-                v += self.light_free_shift  # flare needs a source: keep more without one
+                # flare needs a source: keep more without one, but not the isolated
+                # events a source too slow for the light test scatters
+                if self.light_free_support:
+                    supported = event_support(events, sensor_size) >= self.light_free_support
+                    v += self.light_free_shift * supported
+                else:
+                    v += self.light_free_shift
                 continue
             ghosts = None  # where the lights' ghosts can be: for the ghost prior and far shift
             if self.ghost_shift or self.far_shift:
