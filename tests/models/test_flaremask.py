@@ -141,6 +141,24 @@ def test_event_logits_equal_the_dense_paths_whether_pixels_repeat_or_not(side):
     np.testing.assert_allclose(got, full[channel, ev["y"], ev["x"]], rtol=0, atol=1e-4)
     on, total, _, _ = fm._frames(*size)
     assert not on.any() and not total.any()  # the frames are left zeroed for the next window
+    # the events' support comes with the refinement's counts (memoised or not), and
+    # without a refinement from event_support itself; either way a 5x5 box count
+    counts = np.zeros((size[1] + 4, size[0] + 4), np.int64)
+    np.add.at(counts, (ev["y"] + 2, ev["x"] + 2), 1)
+    box = sum(np.roll(np.roll(counts, dy, 0), dx, 1) for dy in range(-2, 3) for dx in range(-2, 3))
+    expected = box[ev["y"] + 2, ev["x"] + 2] - 1
+    np.testing.assert_array_equal(fm.event_support(ev, size), expected)
+    for params in (net.pixel_params(), None):
+        support = np.full(ev.size, -7, np.int64)
+        with_support = fm.event_keep_logits(
+            coarse[0].numpy(), ev, 0, 20_000, 8, pixel_params=params, sensor_size=size,
+            support=support,
+        )  # fmt: skip
+        np.testing.assert_array_equal(support, expected)
+        if params is not None:
+            np.testing.assert_array_equal(with_support, got)  # the logits do not change
+    with pytest.raises(ValueError, match="support must be int64"):
+        fm.event_keep_logits(coarse[0].numpy(), ev, 0, 20_000, 8, support=np.zeros(3, np.int64))
 
 
 def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():

@@ -415,9 +415,12 @@ def _event_logits(
     gain,
     w_out,
     b_out,
+    support,
 ):  # pragma: no cover - compiled
     """Each event's keep logit: the bilinear sample of ``logits (2 bins, h, w)`` at its
-    pixel centre, plus the refinement where ``w_in`` has rows (see event_keep_mask)."""
+    pixel centre, plus the refinement where ``w_in`` has rows (see event_keep_mask).
+    Where ``w_in`` has rows and ``support`` is as long as the events, also each event's
+    :func:`event_support` into it (the refinement's four counts, summed)."""
     n_ch, h, w = logits.shape
     bins = n_ch // 2
     hidden = w_in.shape[0]
@@ -449,6 +452,8 @@ def _event_logits(
                 f[2], f[3] = rings[2 * pix], rings[2 * pix + 1]
             else:
                 _pixel_row(x, y, p, on, total, width, height, i, f)
+            if support.size:
+                support[i] = f[0] + f[1] + f[2] + f[3] - 1
             f0, f1 = _log1p_count(f[0], table), _log1p_count(f[1], table)
             f2, f3 = _log1p_count(f[2], table), _log1p_count(f[3], table)
             delta = 0.0
@@ -535,13 +540,16 @@ def event_keep_logits(
     *,
     pixel_params: dict[str, np.ndarray] | None = None,
     sensor_size: tuple[int, int] | None = None,
+    support: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per-event keep logits (float64) from low-resolution logits ``(2 bins, h, w)``.
 
     What :func:`event_keep_mask` thresholds: the logit of the event's own
     polarity and bin, interpolated bilinearly at the event's pixel centre and
     refined with the event's pixel features where ``pixel_params`` are given.
-    The window may start anywhere (it need not be aligned).
+    The window may start anywhere (it need not be aligned). ``support``, an
+    ``int64`` array as long as the events, receives :func:`event_support` (with the
+    refinement, from the counts it makes anyway: no second pass over the window).
 
     Examples
     --------
@@ -565,6 +573,12 @@ def event_keep_logits(
             np.ascontiguousarray(pixel_params[k], dtype=np.float64)
             for k in ("w_in", "b_in", "gain", "w_out", "b_out")
         )
+    if support is not None and (support.shape != events.shape or support.dtype != np.int64):
+        raise ValueError(f"support must be int64 of shape {events.shape}")
+    if support is not None and pixel_params is None:
+        if sensor_size is None:
+            raise ValueError("the events' support needs the sensor size")
+        support[:] = event_support(events, sensor_size)
     # the refinement counts into sensor-sized frames; the logits are sampled clipped
     bounds = (width, height) if pixel_params is not None else (1 << 31, 1 << 31)
     _check_inside(events, window_start_us, window_us, *bounds)
@@ -587,6 +601,7 @@ def event_keep_logits(
         gain,
         w_out,
         b_out,
+        np.zeros(0, np.int64) if support is None or pixel_params is None else support,
     )
 
 

@@ -40,7 +40,6 @@ from .flaremask import (
     FlareMaskNet,
     event_features,
     event_keep_logits,
-    event_support,
     keep_logit_threshold,
 )
 from .ghosts import (
@@ -463,25 +462,28 @@ class ModelDeflarer:
             [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
         )
         logits = self._network(feats, sensor_size, True)
+        # each event's support, for the light-free shift: free with the refinement's counts
+        need = self.light_free_shift and self.light_free_support
+        supports = [np.empty(ev.size, np.int64) if need else None for _, ev in batch]
         out = [
             event_keep_logits(
-                lg, events, start, w, scale, pixel_params=self.pixel_params, sensor_size=sensor_size
+                lg, events, start, w, scale, pixel_params=self.pixel_params,
+                sensor_size=sensor_size, support=support,
             )
-            for (start, events), lg in zip(batch, logits, strict=True)
-        ]
+            for (start, events), lg, support in zip(batch, logits, supports, strict=True)
+        ]  # fmt: skip
         priors = (self.ghost_shift, self.halo_shift, self.streak_shift)
         if not (any(priors) or self.light_free_shift or self.far_shift):
             return out
-        for (start, events), v in zip(batch, out, strict=True):
+        for (start, events), v, support in zip(batch, out, supports, strict=True):
             # the lights' rates over the part of the window the stream covers
             span = covered_us(events, start, w)
             lights = window_lights(events, sensor_size, span)  # counted once for all priors
             if not lights.any():
                 # flare needs a source: keep more without one, but not the isolated
                 # events a source too slow for the light test scatters
-                if self.light_free_support:
-                    supported = event_support(events, sensor_size) >= self.light_free_support
-                    v += self.light_free_shift * supported
+                if support is not None:
+                    v += self.light_free_shift * (support >= self.light_free_support)
                 else:
                     v += self.light_free_shift
                 continue
