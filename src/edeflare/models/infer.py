@@ -226,9 +226,9 @@ class ModelDeflarer:
         Mask models: the light-free shift raises only the events with at least this
         many other events of their window in their 5x5 square
         (:func:`~edeflare.models.flaremask.event_support`); the isolated rest is left to
-        the network. A night lamp that fires too slowly to pass the light test (a
-        still LED lamp, not a flickering one) still scatters its light into sparse,
-        isolated events along streaks and rings; a scene's events come in edges.
+        the network. A night lamp that fires too slowly to pass the light test
+        still scatters its light into sparse, isolated events along streaks and
+        rings; a scene's events come in edges.
         Default: the model card's (0: every event, unless the card says otherwise).
     far_shift : float, optional
         Mask models: how much higher (in logit units) the keep logit of an event is
