@@ -36,12 +36,7 @@ from ..events import EVENT_DTYPE, SensorSize, check_events, select_events
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
-from .flaremask import (
-    FlareMaskNet,
-    event_features,
-    event_keep_logits,
-    keep_logit_threshold,
-)
+from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
 from .ghosts import (
     check_ghost_shift,
     check_logit_shift,
