@@ -42,7 +42,6 @@ Run: ``python benchmarks/reference_window.py [--eflare]``; writes
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +50,8 @@ from PIL import Image
 
 from edeflare import list_methods
 from edeflare.deflare import deflare
-from edeflare.eval.score import load_lights, score_events
-from edeflare.events import EVENT_DTYPE, sort_events
+from edeflare.eval.score import classify_events, load_lights, score_events
+from edeflare.events import EVENT_DTYPE, make_events, sort_events
 
 PICTURE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "real_flare_example.png"
 LIGHTS = Path(__file__).with_name("reference_window_lights.json")
@@ -94,10 +93,8 @@ def reference_window(core: int = 4, seed: int = 0, picture: Path = PICTURE) -> n
     """
     x, y, p = drawn_events(picture)
     if core > 1:
-        lit = np.zeros(x.size, bool)
-        for source in json.loads(LIGHTS.read_text())["sources"]:
-            cx, cy, r = source["circle"]
-            lit |= (x - cx) ** 2 + (y - cy) ** 2 <= r * r
+        drawn = make_events(np.zeros(x.size, np.int64), x, y, p)
+        lit = classify_events(drawn, load_lights(LIGHTS, SENSOR), SENSOR).labels == "light"
         times = np.where(lit, core, 1)
         x, y, p = np.repeat(x, times), np.repeat(y, times), np.repeat(p, times)
     rng = np.random.default_rng(seed)

@@ -484,13 +484,18 @@ def event_pixel_features(events: np.ndarray, sensor_size: tuple[int, int]) -> np
     >>> np.expm1(event_pixel_features(ev, (6, 4))).round().tolist()
     [[1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.0], [1.0, 0.0, 2.0, 0.0]]
     """
+    return np.log1p(_event_pixel_counts(events, sensor_size).astype(np.float64))
+
+
+def _event_pixel_counts(events: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarray:
+    """The refinement's four counts at each event ``(n, 4)`` (int64), events checked on
+    the sensor (the compiled kernel indexes its frames without bounds checks)."""
     width, height = int(sensor_size[0]), int(sensor_size[1])
     x, y = events["x"], events["y"]
     if events.size and (int(x.max()) >= width or int(y.max()) >= height):
         raise ValueError(f"events lie outside the {width}x{height} sensor")
     on, total, _, _ = _frames(width, height)
-    counts = _pixel_counts(events["x"], events["y"], events["p"], on, total, width, height)
-    return np.log1p(counts.astype(np.float64))
+    return _pixel_counts(x, y, events["p"], on, total, width, height)
 
 
 def event_support(events: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarray:
@@ -509,13 +514,7 @@ def event_support(events: np.ndarray, sensor_size: tuple[int, int]) -> np.ndarra
     >>> event_support(ev, (12, 12)).tolist()   # (1, 1) twice, (3, 2) two away, (9, 9) alone
     [2, 2, 2, 0]
     """
-    width, height = int(sensor_size[0]), int(sensor_size[1])
-    x, y = events["x"], events["y"]
-    if events.size and (int(x.max()) >= width or int(y.max()) >= height):
-        raise ValueError(f"events lie outside the {width}x{height} sensor")
-    on, total, _, _ = _frames(width, height)
-    counts = _pixel_counts(x, y, events["p"], on, total, width, height)
-    return counts.sum(axis=1) - 1
+    return _event_pixel_counts(events, sensor_size).sum(axis=1) - 1
 
 
 def keep_logit_threshold(threshold: float) -> float:
