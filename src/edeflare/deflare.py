@@ -566,6 +566,20 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    light_free_crowding: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--light-free-crowding",
+            "mask models: with a light-free support, the isolated events still get the "
+            "light-free shift unless they crowd, more of them within a sixth of the "
+            "sensor's smaller side than the window's median density allows by this many "
+            "Poisson standard deviations (scattered light lies around its source, background "
+            "activity evenly; 0: no isolated event gets it)",
+            metavar="Z",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     far_shift: float | None = dataclasses.field(
         default=None,
         metadata=cli_option(
@@ -764,6 +778,7 @@ class ModelMethod(Method):
         streak_shift: float | None = None,
         light_free_shift: float | None = None,
         light_free_support: int | None = None,
+        light_free_crowding: float | None = None,
         far_shift: float | None = None,
     ) -> None:
         from .models.ghosts import check_ghost_shift, check_logit_shift, check_support
@@ -788,6 +803,8 @@ class ModelMethod(Method):
             light_free_shift = check_logit_shift(light_free_shift, "light_free_shift")
         if light_free_support is not None:
             light_free_support = check_support(light_free_support, "light_free_support")
+        if light_free_crowding is not None:
+            light_free_crowding = check_logit_shift(light_free_crowding, "light_free_crowding")
         if far_shift is not None:
             far_shift = check_logit_shift(far_shift, "far_shift")
         if (
@@ -829,6 +846,7 @@ class ModelMethod(Method):
             streak_shift=streak_shift,
             light_free_shift=light_free_shift,
             light_free_support=light_free_support,
+            light_free_crowding=light_free_crowding,
             far_shift=far_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
@@ -854,6 +872,7 @@ class ModelMethod(Method):
                 streak_shift=p["streak_shift"],
                 light_free_shift=p["light_free_shift"],
                 light_free_support=p["light_free_support"],
+                light_free_crowding=p["light_free_crowding"],
                 far_shift=p["far_shift"],
             )
         deflarer = self._deflarers[seed]

@@ -333,7 +333,9 @@ def test_the_light_free_shift_raises_only_the_events_with_support_in_their_5x5_s
     plain = ModelDeflarer(weights, light_free_shift=0.0)
     base = plain.window_logits([(0, dark)], SIZE)[0]
     for support, raised in ((0, 14), (1, 11), (2, 9), (9, 0)):
-        d = ModelDeflarer(weights, light_free_shift=2.0, light_free_support=support)
+        d = ModelDeflarer(
+            weights, light_free_shift=2.0, light_free_support=support, light_free_crowding=0
+        )
         delta = d.window_logits([(0, dark)], SIZE)[0] - base
         np.testing.assert_allclose(delta[:raised], 2.0, atol=1e-9)
         np.testing.assert_allclose(delta[raised:], 0.0, atol=1e-9)

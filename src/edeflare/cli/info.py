@@ -76,11 +76,15 @@ def _card(path: Path) -> int:
     print(f"preset      {card.preset} ({card.bins} bins, {card.window_us / 1000:g} ms windows)")
     if card.preset.startswith("mask."):
         print(f"keep        probability > {card.keep_threshold:g}")
+        light_free = f"light_free_shift {card.light_free_shift:g}"
+        if card.light_free_support:
+            gate = f"support {card.light_free_support}"
+            if card.light_free_crowding:
+                gate += f", crowding {card.light_free_crowding:g}"
+            light_free += f" ({gate})"
         print(
             f"priors      halo_shift {card.halo_shift:g}, ghost_shift {card.ghost_shift:g}, "
-            f"streak_shift {card.streak_shift:g}, light_free_shift {card.light_free_shift:g}"
-            + (f" (support {card.light_free_support})" if card.light_free_support else "")
-            + f", far_shift {card.far_shift:g}"
+            f"streak_shift {card.streak_shift:g}, {light_free}, far_shift {card.far_shift:g}"
         )
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")

@@ -46,6 +46,7 @@ from .ghosts import (
     in_ghost_prior,
 )
 from .halos import check_halo_shift, far_from_lights, in_halo_prior, window_lights
+from .scatter import crowded_isolated
 from .streaks import check_streak_shift, in_streak_prior
 from .weights import ModelCard, load_model
 
@@ -225,6 +226,14 @@ class ModelDeflarer:
         still scatters its light into sparse, isolated events along streaks and
         rings; a scene's events come in edges.
         Default: the model card's (0: every event, unless the card says otherwise).
+    light_free_crowding : float, optional
+        Mask models with a light-free support: the isolated events that get no light-free
+        shift are only those that crowd, more of them within a sixth of the sensor's
+        smaller side than the window's median density allows by this many Poisson
+        standard deviations (:func:`~edeflare.models.scatter.crowded_isolated`):
+        scattered light lies around its source, a sensor's background activity evenly
+        over it. 0: every isolated event. Default: the model card's (0, unless the card
+        says otherwise).
     far_shift : float, optional
         Mask models: how much higher (in logit units) the keep logit of an event is
         in a window with lights where it is far from all of them
@@ -261,6 +270,7 @@ class ModelDeflarer:
         streak_shift: float | None = None,
         light_free_shift: float | None = None,
         light_free_support: int | None = None,
+        light_free_crowding: float | None = None,
         far_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
@@ -314,6 +324,8 @@ class ModelDeflarer:
         self.light_free_shift = check_logit_shift(shift, "light_free_shift")
         support = card.light_free_support if light_free_support is None else light_free_support
         self.light_free_support = check_support(support, "light_free_support")
+        crowding = card.light_free_crowding if light_free_crowding is None else light_free_crowding
+        self.light_free_crowding = check_logit_shift(crowding, "light_free_crowding")
         shift = card.far_shift if far_shift is None else far_shift
         self.far_shift = check_logit_shift(shift, "far_shift")
         for name in ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift"):
@@ -476,11 +488,16 @@ class ModelDeflarer:
             lights = window_lights(events, sensor_size, span)  # counted once for all priors
             if not lights.any():
                 # flare needs a source: keep more without one, but not the isolated
-                # events a source too slow for the light test scatters
-                if support is not None:
-                    v += self.light_free_shift * (support >= self.light_free_support)
-                else:
+                # events a source too slow for the light test scatters around it
+                if support is None:
                     v += self.light_free_shift
+                    continue
+                isolated = support < self.light_free_support
+                if self.light_free_crowding:  # the isolated events spread evenly are noise
+                    isolated = crowded_isolated(
+                        events, sensor_size, isolated, z=self.light_free_crowding
+                    )
+                v += self.light_free_shift * ~isolated
                 continue
             ghosts = None  # where the lights' ghosts can be: for the ghost prior and far shift
             if self.ghost_shift or self.far_shift:

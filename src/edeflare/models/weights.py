@@ -70,6 +70,7 @@ class ModelCard:
     streak_shift: float = 0.0  # mask models: keep logit lowered on diffraction spikes (streaks.py)
     light_free_shift: float = 0.0  # mask models: keep logit raised in windows without a light
     light_free_support: int = 0  # ... only at events with this many others in their 5x5 square
+    light_free_crowding: float = 0.0  # ... and at isolated ones that do not crowd (scatter.py)
     far_shift: float = 0.0  # mask models: keep logit raised far from every light (halos.py)
 
     def to_dict(self) -> dict[str, Any]:

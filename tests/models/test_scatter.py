@@ -1,0 +1,135 @@
+"""Crowded isolated events (edeflare.models.scatter): against a loop over the squares,
+by hand on small layouts, and in the light-free shift of the model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edeflare.errors import ParameterError
+from edeflare.events import make_events
+from edeflare.models.flaremask import event_support
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.scatter import SCATTER_CELL, SCATTER_REACH, crowded_isolated, scatter_reach
+
+
+def _crowded_by_loops(events, size, isolated, z, cell, reach):
+    """The definition, one cell and one event at a time."""
+    gw, gh = -(-size[0] // cell), -(-size[1] // cell)
+    counts = np.zeros((gh, gw))
+    for x, y in zip(events["x"][isolated].tolist(), events["y"][isolated].tolist(), strict=True):
+        counts[y // cell, x // cell] += 1
+    k = reach // cell
+
+    def square(cy, cx):
+        part = counts[max(cy - k, 0) : cy + k + 1, max(cx - k, 0) : cx + k + 1]
+        return part.sum(), part.size
+
+    density = np.median(
+        [n / a for n, a in (square(cy, cx) for cy in range(gh) for cx in range(gw))]
+    )
+    out = np.zeros(events.size, bool)
+    for i in np.flatnonzero(isolated):
+        n, a = square(int(events["y"][i]) // cell, int(events["x"][i]) // cell)
+        lam = density * a
+        out[i] = n - 1 - lam > z * np.sqrt(lam + 1)
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_crowded_isolated_equals_the_definition_by_loops(seed):
+    rng = np.random.default_rng(seed)
+    size = (203, 131)
+    # an even spread plus a cluster, some events not judged
+    n_even, n_cluster = 120, 60
+    x = np.concatenate([rng.integers(0, size[0], n_even), rng.normal(150, 12, n_cluster)])
+    y = np.concatenate([rng.integers(0, size[1], n_even), rng.normal(40, 10, n_cluster)])
+    x = np.clip(np.rint(x), 0, size[0] - 1).astype(int)
+    y = np.clip(np.rint(y), 0, size[1] - 1).astype(int)
+    ev = make_events(np.arange(x.size), x, y, np.ones(x.size))
+    judged = rng.random(x.size) < 0.8
+    for z, cell, reach in ((3.0, 16, 128), (0.0, 8, 24), (2.0, 5, 0)):
+        got = crowded_isolated(ev, size, judged, z=z, cell=cell, reach=reach)
+        np.testing.assert_array_equal(got, _crowded_by_loops(ev, size, judged, z, cell, reach))
+        assert not got[~judged].any()
+    # at the default reach (a sixth of 131: 21 px) most of the cluster crowds
+    assert scatter_reach(size) == 21
+    assert crowded_isolated(ev, size, judged, z=3.0)[n_even:][judged[n_even:]].mean() > 0.5
+
+
+def test_an_even_spread_never_crowds_and_a_cluster_in_it_does():
+    assert (SCATTER_CELL, SCATTER_REACH, scatter_reach((640, 480))) == (16, 1 / 6, 80)
+    size = (640, 480)
+    gy, gx = np.mgrid[0:12, 0:16] * 40 + 20  # one isolated event per 40 px
+    even = make_events(np.arange(gx.size), gx.ravel(), gy.ravel(), np.ones(gx.size))
+    assert not crowded_isolated(even, size, np.ones(even.size, bool), z=3.0).any()
+    # a ring of 24 events of radius 30 around (320, 240), 8 px apart: scattered light
+    angle = np.arange(24) * 2 * np.pi / 24
+    rx, ry = np.rint(320 + 30 * np.cos(angle)), np.rint(240 + 30 * np.sin(angle))
+    ring = make_events(np.arange(24), rx.astype(int), ry.astype(int), np.zeros(24))
+    both = np.concatenate([even, ring])
+    hit = crowded_isolated(both, size, np.ones(both.size, bool), z=3.0)
+    assert hit[even.size :].all()
+    # of the even events only those whose 11x11-cell square (80 px) holds the ring crowd
+    near = (np.abs(gx.ravel() // 16 - 320 // 16) <= 10) & (
+        np.abs(gy.ravel() // 16 - 240 // 16) <= 10
+    )
+    assert not hit[: even.size][~near].any()
+    # z: the higher, the fewer; none judged, or one alone, none crowd
+    assert crowded_isolated(both, size, np.ones(both.size, bool), z=1e6).sum() == 0
+    assert not crowded_isolated(both, size, np.zeros(both.size, bool), z=0.0).any()
+    one = np.zeros(both.size, bool)
+    one[-1] = True
+    assert not crowded_isolated(both, size, one, z=0.0).any()
+
+
+def test_crowded_isolated_rejects_bad_arguments():
+    ev = make_events([0, 1], [1, 2], [1, 2], [1, 1])
+    with pytest.raises(ValueError, match="one bool per event"):
+        crowded_isolated(ev, (8, 8), np.ones(3, bool), z=3.0)
+    for z in (-1.0, float("nan")):
+        with pytest.raises(ValueError, match="z must be >= 0"):
+            crowded_isolated(ev, (8, 8), np.ones(2, bool), z=z)
+    with pytest.raises(ValueError, match="cell >= 1"):
+        crowded_isolated(ev, (8, 8), np.ones(2, bool), z=3.0, cell=0)
+
+
+def test_the_light_free_shift_reaches_the_isolated_events_that_do_not_crowd():
+    weights = bundled_weights()
+    size = (640, 480)
+    # no light: a 3x3 patch (supported), isolated events one per 40 px over the sensor
+    # (background activity) and a ring of 24 isolated ones 8 px apart (scattered light)
+    px, py = np.mgrid[200:203, 100:103]
+    gy, gx = np.mgrid[0:12, 0:16] * 40 + 20
+    angle = np.arange(24) * 2 * np.pi / 24
+    rx = np.rint(320 + 30 * np.cos(angle)).astype(int)
+    ry = np.rint(240 + 30 * np.sin(angle)).astype(int)
+    x = np.concatenate([px.ravel(), gx.ravel(), rx])
+    y = np.concatenate([py.ravel(), gy.ravel(), ry])
+    ev = make_events(np.arange(x.size) * 50, x, y, np.arange(x.size) % 2)
+    order = np.argsort(ev["t"], kind="stable")
+    assert (order == np.arange(ev.size)).all()
+    support = event_support(ev, size)
+    assert (support[:9] == 8).all() and (support[9:] < 2).all()
+    patch, ring = slice(0, 9), slice(9 + gx.size, None)
+    near = (np.abs(gx.ravel() // 16 - 20) <= 7) & (np.abs(gy.ravel() // 16 - 15) <= 7)
+    far = np.zeros(ev.size, bool)
+    far[9 : 9 + gx.size] = ~near  # even events whose square misses the ring
+    base = ModelDeflarer(weights, light_free_shift=0.0).window_logits([(0, ev)], size)[0]
+
+    def delta(crowding):
+        d = ModelDeflarer(
+            weights, light_free_shift=2.0, light_free_support=2, light_free_crowding=crowding
+        )
+        return d.window_logits([(0, ev)], size)[0] - base
+
+    off, on = delta(0.0), delta(3.0)
+    np.testing.assert_allclose(off[patch], 2.0, atol=1e-9)
+    np.testing.assert_allclose(off[9:], 0.0, atol=1e-9)  # crowding 0: no isolated event
+    np.testing.assert_allclose(on[patch], 2.0, atol=1e-9)
+    np.testing.assert_allclose(on[far], 2.0, atol=1e-9)  # background activity: raised
+    np.testing.assert_allclose(on[ring], 0.0, atol=1e-9)  # scattered light: left alone
+    for bad in (-1.0, float("inf"), True):
+        with pytest.raises(ParameterError, match="light_free_crowding"):
+            ModelDeflarer(weights, light_free_crowding=bad)
+    assert ModelDeflarer(weights).light_free_crowding == 3.0
