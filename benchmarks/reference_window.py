@@ -30,10 +30,12 @@ So this is a proxy: the flare's places and polarities are real, its timing is no
 where the bundled default is tested on streaks and a ghost ring like the issue's.
 
 Rows per case: the raw input, the baselines, the three dv-processing filters (where
-installed), the bundled default, and the default without its light-free support (what
-it was before); with ``--eflare`` also the previous default ``eflare`` (slow at this
-size: 3 minutes a case on 2 cores). The reference is ``dv-fastdecay``, the filter the issue
-compared with: ``vs fastdecay`` is each row's combined score over its.
+installed), the bundled default, the default with its light-free support alone (no
+crowding test, no scattered-light field: the card of 2026-11-27's sixth session) and
+without it (the card before that); with ``--eflare`` also the previous default
+``eflare`` (slow at this size: 3 minutes a case on 2 cores). The reference is
+``dv-fastdecay``, the filter the issue compared with: ``vs fastdecay`` is each row's
+combined score over its.
 
 Run: ``python benchmarks/reference_window.py [--eflare]``; writes
 ``results/reference_window.json`` (about a minute).
@@ -111,6 +113,10 @@ def methods(eflare: bool = False) -> dict[str, tuple[str, dict]]:
         if name in list_methods():
             rows[name] = (name, {})
     rows["default"] = ("model", {})
+    rows["default, light-free support alone"] = (
+        "model",
+        {"light_free_crowding": 0, "scatter_shift": 0},
+    )
     rows["default, no light-free support"] = ("model", {"light_free_support": 0})
     if eflare:
         rows["eflare (previous default)"] = ("model", {"weights": "eflare"})

@@ -54,7 +54,7 @@ def test_info_prints_a_weights_files_card(tmp_path, capsys):
     assert "preset      mask.pixel (8 bins, 20 ms windows)" in out
     priors = (
         "halo_shift 3, ghost_shift 3, streak_shift 8, light_free_shift 4 (support 2, "
-        "crowding 3), far_shift 4"
+        "crowding 3, scatter_shift 4), far_shift 4"
     )
     assert f"priors      {priors}" in out
     assert "keep        probability > 0.4" in out

@@ -6,8 +6,8 @@ Run from the repository root, with ``../shared/reference/`` present::
 
 One 100 ms window of ``benchmarks/reference_window.py``'s proxy (the lights' pixels
 firing 4 times a window), cropped to the picture's panel: the input, the default with
-the light-free shift at every event (the card before), the default, and dv-processing's
-FastDecayNoiseFilter. Each method runs on the whole second; the figure shows its first
+the card of 2026-11-27's sixth session (the light-free support alone), the default, and
+dv-processing's FastDecayNoiseFilter. Each method runs on the whole second; the figure shows its first
 window. ON red, OFF blue (``edeflare.viz.event_frame``).
 """
 
@@ -29,10 +29,10 @@ def main(out: str) -> None:
     ev = reference_window(core=4)
     rows = {
         "input (digitised, 100 ms)": ev,
-        "default, light-free shift at every event (before)": deflare(
-            ev, SENSOR, "model", light_free_support=0
+        "default, light-free support alone (before)": deflare(
+            ev, SENSOR, "model", light_free_crowding=0, scatter_shift=0
         ),
-        "default (light-free support 2)": deflare(ev, SENSOR, "model"),
+        "default (crowding and scattered-light field)": deflare(ev, SENSOR, "model"),
     }
     if "dv-fastdecay" in list_methods():
         rows["dv-fastdecay (defaults)"] = deflare(ev, SENSOR, "dv-fastdecay")

@@ -580,6 +580,20 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
+    scatter_shift: float | None = dataclasses.field(
+        default=None,
+        metadata=cli_option(
+            "--scatter-shift",
+            "mask models, with a light-free support and crowding: in a window without a "
+            "light, where crowded isolated events are a share of all (the scattered light "
+            "of a lamp too slow for the light test), lower them by this much, raise the "
+            "dense events (the lamp) by this much more, and give the sparser ones (its "
+            "bloom) no light-free shift (0: off)",
+            metavar="LOGIT",
+            type=float,
+            default_text="the model card's",
+        ),
+    )
     far_shift: float | None = dataclasses.field(
         default=None,
         metadata=cli_option(
@@ -779,6 +793,7 @@ class ModelMethod(Method):
         light_free_shift: float | None = None,
         light_free_support: int | None = None,
         light_free_crowding: float | None = None,
+        scatter_shift: float | None = None,
         far_shift: float | None = None,
     ) -> None:
         from .models.ghosts import check_ghost_shift, check_logit_shift, check_support
@@ -805,6 +820,8 @@ class ModelMethod(Method):
             light_free_support = check_support(light_free_support, "light_free_support")
         if light_free_crowding is not None:
             light_free_crowding = check_logit_shift(light_free_crowding, "light_free_crowding")
+        if scatter_shift is not None:
+            scatter_shift = check_logit_shift(scatter_shift, "scatter_shift")
         if far_shift is not None:
             far_shift = check_logit_shift(far_shift, "far_shift")
         if (
@@ -847,6 +864,7 @@ class ModelMethod(Method):
             light_free_shift=light_free_shift,
             light_free_support=light_free_support,
             light_free_crowding=light_free_crowding,
+            scatter_shift=scatter_shift,
             far_shift=far_shift,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
@@ -873,6 +891,7 @@ class ModelMethod(Method):
                 light_free_shift=p["light_free_shift"],
                 light_free_support=p["light_free_support"],
                 light_free_crowding=p["light_free_crowding"],
+                scatter_shift=p["scatter_shift"],
                 far_shift=p["far_shift"],
             )
         deflarer = self._deflarers[seed]

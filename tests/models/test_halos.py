@@ -406,7 +406,7 @@ def test_the_far_shift_raises_the_events_far_from_the_lights_outside_their_ghost
     np.testing.assert_array_equal(raised[~far], plain[~far])
     # a window without a light gets the light-free shift only
     dark = scatter[scatter["x"] >= 100]
-    only_far = ModelDeflarer(weights, far_shift=2.5, light_free_shift=0.0)
+    only_far = ModelDeflarer(weights, far_shift=2.5, light_free_shift=0.0, scatter_shift=0.0)
     both = ModelDeflarer(weights, far_shift=2.5, light_free_shift=1.0, light_free_support=0)
     (d0,), (d1,) = only_far.window_logits([(0, dark)], SIZE), both.window_logits([(0, dark)], SIZE)
     np.testing.assert_allclose(d1 - d0, 1.0, atol=1e-9)

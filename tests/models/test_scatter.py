@@ -1,5 +1,6 @@
-"""Crowded isolated events (edeflare.models.scatter): against a loop over the squares,
-by hand on small layouts, and in the light-free shift of the model."""
+"""Crowded isolated events and scattered-light fields (edeflare.models.scatter): against
+loops over the squares, by hand on small layouts, and in the light-free shift of the
+model."""
 
 from __future__ import annotations
 
@@ -10,7 +11,17 @@ from edeflare.errors import ParameterError
 from edeflare.events import make_events
 from edeflare.models.flaremask import event_support
 from edeflare.models.infer import ModelDeflarer, bundled_weights
-from edeflare.models.scatter import SCATTER_CELL, SCATTER_REACH, crowded_isolated, scatter_reach
+from edeflare.models.scatter import (
+    FIELD_MIN_EVENTS,
+    FIELD_MIN_SHARE,
+    SCATTER_CELL,
+    SCATTER_REACH,
+    SOURCE_SUPPORT,
+    crowded_isolated,
+    light_free_shifts,
+    scatter_field,
+    scatter_reach,
+)
 
 
 def _crowded_by_loops(events, size, isolated, z, cell, reach):
@@ -115,11 +126,16 @@ def test_the_light_free_shift_reaches_the_isolated_events_that_do_not_crowd():
     near = (np.abs(gx.ravel() // 16 - 20) <= 7) & (np.abs(gy.ravel() // 16 - 15) <= 7)
     far = np.zeros(ev.size, bool)
     far[9 : 9 + gx.size] = ~near  # even events whose square misses the ring
-    base = ModelDeflarer(weights, light_free_shift=0.0).window_logits([(0, ev)], size)[0]
+    plain = ModelDeflarer(weights, light_free_shift=0.0, scatter_shift=0.0)
+    base = plain.window_logits([(0, ev)], size)[0]
 
     def delta(crowding):
         d = ModelDeflarer(
-            weights, light_free_shift=2.0, light_free_support=2, light_free_crowding=crowding
+            weights,
+            light_free_shift=2.0,
+            light_free_support=2,
+            light_free_crowding=crowding,
+            scatter_shift=0.0,
         )
         return d.window_logits([(0, ev)], size)[0] - base
 
@@ -133,3 +149,110 @@ def test_the_light_free_shift_reaches_the_isolated_events_that_do_not_crowd():
         with pytest.raises(ParameterError, match="light_free_crowding"):
             ModelDeflarer(weights, light_free_crowding=bad)
     assert ModelDeflarer(weights).light_free_crowding == 3.0
+
+
+def _field_by_loops(events, size, crowded, cell, reach):
+    """scatter_field's definition, one event at a time."""
+    k = reach // cell
+    cy, cx = events["y"].astype(int) // cell, events["x"].astype(int) // cell
+    out = np.zeros(events.size, bool)
+    for i in range(events.size):
+        near = (np.abs(cy - cy[i]) <= k) & (np.abs(cx - cx[i]) <= k)
+        mine = (near & crowded).sum()
+        out[i] = mine >= FIELD_MIN_EVENTS and mine >= FIELD_MIN_SHARE * near.sum()
+    return out
+
+
+def _slow_lamp_window():
+    """A light-free 640x480 window: a dense 6x6 lamp, a line of events 2 px apart beside
+    it (its bloom), 30 isolated events on a ring of radius 50 around it (its scattered
+    light) and 48 isolated events one per 80 px over the sensor (background activity)."""
+    ly, lx = np.mgrid[200:206, 300:306]
+    bx = np.arange(320, 342, 2)
+    angle = np.arange(30) * 2 * np.pi / 30
+    rx = np.rint(303 + 50 * np.cos(angle)).astype(int)
+    ry = np.rint(203 + 50 * np.sin(angle)).astype(int)
+    gy, gx = np.mgrid[0:6, 0:8] * 80 + 40
+    x = np.concatenate([lx.ravel(), bx, rx, gx.ravel()])
+    y = np.concatenate([ly.ravel(), np.full(bx.size, 230), ry, gy.ravel()])
+    parts = {"lamp": slice(0, 36), "bloom": slice(36, 47), "ring": slice(47, 77)}
+    parts["even"] = slice(77, 125)
+    return make_events(np.arange(x.size) * 100, x, y, np.arange(x.size) % 2), parts
+
+
+def test_scatter_field_equals_the_definition_by_loops():
+    ev, parts = _slow_lamp_window()
+    size = (640, 480)
+    isolated = event_support(ev, size) < 2
+    crowded = crowded_isolated(ev, size, isolated, z=3.0)
+    assert crowded[parts["ring"]].all() and not crowded[parts["lamp"]].any()
+    for cell, reach in ((16, 80), (8, 40), (16, 0)):
+        np.testing.assert_array_equal(
+            scatter_field(ev, size, crowded, cell=cell, reach=reach),
+            _field_by_loops(ev, size, crowded, cell, reach),
+        )
+    field = scatter_field(ev, size, crowded)
+    assert field[parts["lamp"]].all() and field[parts["ring"]].all()
+    assert field[parts["bloom"]].all()
+    far = _far_from(ev[parts["even"]], 303, 203)
+    assert far.sum() >= 25 and not field[parts["even"]][far].any()
+    with pytest.raises(ValueError, match="crowded must hold one bool per event"):
+        scatter_field(ev, size, crowded[:-1])
+
+
+def _far_from(events, x, y):
+    """Events whose 11x11-cell square (80 px at 16 px cells) misses every cell of the
+    lamp, bloom and ring (all within 55 px of (x, y))."""
+    cx, cy = events["x"].astype(int) // 16, events["y"].astype(int) // 16
+    return (np.abs(cx - x // 16) > 9) | (np.abs(cy - y // 16) > 9)
+
+
+def test_light_free_shifts_raise_the_lamp_and_lower_its_scattered_light():
+    ev, parts = _slow_lamp_window()
+    size = (640, 480)
+    support = event_support(ev, size)
+    assert (support[parts["lamp"]] >= SOURCE_SUPPORT).all()
+    bloom = support[parts["bloom"]]
+    assert bloom.tolist() == [1] + [2] * 9 + [1]  # 2 px apart: the ends have one
+    assert (support[parts["ring"]] < 2).all() and (support[parts["even"]] == 0).all()
+
+    def shifts(**kw):
+        return light_free_shifts(ev, size, support, shift=4.0, **kw)
+
+    np.testing.assert_array_equal(shifts(), 4.0)  # no gate: every event
+    gated = shifts(gate=2)
+    np.testing.assert_array_equal(gated, 4.0 * (support >= 2))
+    crowding = shifts(gate=2, crowding=3.0)
+    np.testing.assert_array_equal(crowding[parts["ring"]], 0.0)
+    far = _far_from(ev[parts["even"]], 303, 203)
+    np.testing.assert_array_equal(crowding[parts["even"]][far], 4.0)  # background activity
+    scatter = shifts(gate=2, crowding=3.0, scatter_shift=4.0)
+    np.testing.assert_array_equal(scatter[parts["lamp"]], 8.0)  # the lamp: 4 + 4
+    # the bloom, sparse and in the field: no shift; its two ends are isolated and crowd
+    np.testing.assert_array_equal(scatter[parts["bloom"]], [-4.0] + [0.0] * 9 + [-4.0])
+    np.testing.assert_array_equal(scatter[parts["ring"]], -4.0)  # its scattered light
+    np.testing.assert_array_equal(scatter[parts["even"]][far], 4.0)
+    # without crowding there is no field: the scatter shift does nothing
+    np.testing.assert_array_equal(shifts(gate=2, scatter_shift=4.0), gated)
+    with pytest.raises(ValueError, match="support must hold one count per event"):
+        light_free_shifts(ev, size, support[:3], shift=4.0, gate=2)
+
+
+def test_the_model_adds_the_light_free_shifts_in_a_window_without_a_light():
+    weights = bundled_weights()
+    ev, _ = _slow_lamp_window()
+    size = (640, 480)
+    base = ModelDeflarer(weights, light_free_shift=0.0, scatter_shift=0.0)
+    base_logits = base.window_logits([(0, ev)], size)[0]
+    d = ModelDeflarer(
+        weights, light_free_shift=4.0, light_free_support=2, light_free_crowding=3.0,
+        scatter_shift=4.0,
+    )  # fmt: skip
+    expected = light_free_shifts(
+        ev, size, event_support(ev, size), shift=4.0, gate=2, crowding=3.0, scatter_shift=4.0
+    )
+    np.testing.assert_allclose(d.window_logits([(0, ev)], size)[0] - base_logits, expected)
+    for bad in (-1.0, float("nan"), "4"):
+        with pytest.raises(ParameterError, match="scatter_shift"):
+            ModelDeflarer(weights, scatter_shift=bad)
+    assert ModelDeflarer(weights).scatter_shift == 4.0

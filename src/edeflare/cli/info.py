@@ -81,6 +81,8 @@ def _card(path: Path) -> int:
             gate = f"support {card.light_free_support}"
             if card.light_free_crowding:
                 gate += f", crowding {card.light_free_crowding:g}"
+                if card.scatter_shift:
+                    gate += f", scatter_shift {card.scatter_shift:g}"
             light_free += f" ({gate})"
         print(
             f"priors      halo_shift {card.halo_shift:g}, ghost_shift {card.ghost_shift:g}, "

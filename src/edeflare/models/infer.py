@@ -46,7 +46,7 @@ from .ghosts import (
     in_ghost_prior,
 )
 from .halos import check_halo_shift, far_from_lights, in_halo_prior, window_lights
-from .scatter import crowded_isolated
+from .scatter import light_free_shifts
 from .streaks import check_streak_shift, in_streak_prior
 from .weights import ModelCard, load_model
 
@@ -234,6 +234,15 @@ class ModelDeflarer:
         scattered light lies around its source, a sensor's background activity evenly
         over it. 0: every isolated event. Default: the model card's (0, unless the card
         says otherwise).
+    scatter_shift : float, optional
+        Mask models with a light-free support and crowding: in a window without a light,
+        where the crowded isolated events are a share of all
+        (:func:`~edeflare.models.scatter.scatter_field`: the scattered light of a lamp
+        too slow for the light test), the crowded ones' keep logit is lowered by this
+        much, the dense events' (the lamp's own) raised by this much more than the
+        light-free shift, and the sparser supported ones (the bloom next to the lamp)
+        get no light-free shift (:func:`~edeflare.models.scatter.light_free_shifts`).
+        Default: the model card's (0, off, unless the card says otherwise).
     far_shift : float, optional
         Mask models: how much higher (in logit units) the keep logit of an event is
         in a window with lights where it is far from all of them
@@ -271,6 +280,7 @@ class ModelDeflarer:
         light_free_shift: float | None = None,
         light_free_support: int | None = None,
         light_free_crowding: float | None = None,
+        scatter_shift: float | None = None,
         far_shift: float | None = None,
     ) -> None:
         if decoder not in DECODERS:
@@ -326,9 +336,12 @@ class ModelDeflarer:
         self.light_free_support = check_support(support, "light_free_support")
         crowding = card.light_free_crowding if light_free_crowding is None else light_free_crowding
         self.light_free_crowding = check_logit_shift(crowding, "light_free_crowding")
+        shift = card.scatter_shift if scatter_shift is None else scatter_shift
+        self.scatter_shift = check_logit_shift(shift, "scatter_shift")
         shift = card.far_shift if far_shift is None else far_shift
         self.far_shift = check_logit_shift(shift, "far_shift")
-        for name in ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift"):
+        shifts = ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift")
+        for name in (*shifts, "scatter_shift"):
             if getattr(self, name) and not isinstance(model, FlareMaskNet):
                 raise EdeflareError(
                     f"{weights}: {name} needs a mask model, not a {card.preset} (voxel-to-voxel)"
@@ -470,7 +483,7 @@ class ModelDeflarer:
         )
         logits = self._network(feats, sensor_size, True)
         # each event's support, for the light-free shift: free with the refinement's counts
-        need = self.light_free_shift and self.light_free_support
+        need = self.light_free_support and (self.light_free_shift or self.scatter_shift)
         supports = [np.empty(ev.size, np.int64) if need else None for _, ev in batch]
         out = [
             event_keep_logits(
@@ -480,24 +493,23 @@ class ModelDeflarer:
             for (start, events), lg, support in zip(batch, logits, supports, strict=True)
         ]  # fmt: skip
         priors = (self.ghost_shift, self.halo_shift, self.streak_shift)
-        if not (any(priors) or self.light_free_shift or self.far_shift):
+        if not (any(priors) or self.light_free_shift or self.scatter_shift or self.far_shift):
             return out
         for (start, events), v, support in zip(batch, out, supports, strict=True):
             # the lights' rates over the part of the window the stream covers
             span = covered_us(events, start, w)
             lights = window_lights(events, sensor_size, span)  # counted once for all priors
             if not lights.any():
-                # flare needs a source: keep more without one, but not the isolated
-                # events a source too slow for the light test scatters around it
+                # flare needs a source: keep more without one, but not the scattered
+                # light of a source too slow for the light test (scatter.py)
                 if support is None:
                     v += self.light_free_shift
                     continue
-                isolated = support < self.light_free_support
-                if self.light_free_crowding:  # the isolated events spread evenly are noise
-                    isolated = crowded_isolated(
-                        events, sensor_size, isolated, z=self.light_free_crowding
-                    )
-                v += self.light_free_shift * ~isolated
+                v += light_free_shifts(
+                    events, sensor_size, support, shift=self.light_free_shift,
+                    gate=self.light_free_support, crowding=self.light_free_crowding,
+                    scatter_shift=self.scatter_shift,
+                )  # fmt: skip
                 continue
             ghosts = None  # where the lights' ghosts can be: for the ghost prior and far shift
             if self.ghost_shift or self.far_shift:

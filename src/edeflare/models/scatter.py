@@ -23,7 +23,17 @@ import numpy as np
 
 from ..events import SensorSize, check_sensor_size
 
-__all__ = ["SCATTER_CELL", "SCATTER_REACH", "crowded_isolated", "scatter_reach"]
+__all__ = [
+    "FIELD_MIN_EVENTS",
+    "FIELD_MIN_SHARE",
+    "SCATTER_CELL",
+    "SCATTER_REACH",
+    "SOURCE_SUPPORT",
+    "crowded_isolated",
+    "light_free_shifts",
+    "scatter_field",
+    "scatter_reach",
+]
 
 SCATTER_CELL = 16
 """Pixels per side of the cells the isolated events are counted in."""
@@ -34,6 +44,18 @@ side (:func:`scatter_reach`): 120 px at 1280x720, 80 px at 640x480, 43 px at 346
 Scattered light reaches a few times a light's radius. The square must also stay well
 inside the sensor: where it covers most of it, every square holds about the same events
 and nothing stands out against their median."""
+
+
+FIELD_MIN_EVENTS = 5
+"""A scattered-light field needs at least this many crowded isolated events in a square."""
+
+FIELD_MIN_SHARE = 0.1
+"""... and they must be at least this share of the square's events."""
+
+SOURCE_SUPPORT = 6
+"""In a field, an event with at least this many others of its window in its 5x5 square
+is dense, the source's own (:func:`light_free_shifts`); one with fewer, and some
+support, is the scattered light's denser part near the source."""
 
 
 def scatter_reach(sensor_size: SensorSize, share: float = SCATTER_REACH) -> int:
@@ -106,40 +128,190 @@ def crowded_isolated(
     (16, 4)
     """
     width, height = check_sensor_size(sensor_size)
-    isolated = np.asarray(isolated, dtype=bool)
-    if isolated.shape != (events.size,):
-        raise ValueError(f"isolated must hold one bool per event ({events.size}), got "
-                         f"shape {isolated.shape}")  # fmt: skip
+    isolated = _judged(events, isolated, "isolated")
     if not z >= 0:
         raise ValueError(f"z must be >= 0, got {z!r}")
-    if reach is None:
-        reach = scatter_reach((width, height))
-    if cell < 1 or reach < 0:
-        raise ValueError(f"need cell >= 1 and reach >= 0, got cell={cell}, reach={reach}")
+    squares = _Squares((width, height), cell, reach, events)
     out = np.zeros(events.size, dtype=bool)
     which = np.flatnonzero(isolated)
     if which.size < 2:
         return out
-    gw, gh = -(-width // cell), -(-height // cell)
-    cx = events["x"][which].astype(np.int64) // cell
-    cy = events["y"][which].astype(np.int64) // cell
-    # summed-area table of the isolated events per cell, a zero row and column first
-    table = np.zeros((gh + 1, gw + 1), dtype=np.int64)
-    np.add.at(table, (cy + 1, cx + 1), 1)
-    table = table.cumsum(axis=0).cumsum(axis=1)
-    k = reach // cell
-
-    def square(ry: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Isolated events and cells in the square of cells within k of (ry, rx)."""
-        y0, y1 = np.clip(ry - k, 0, gh), np.clip(ry + k + 1, 0, gh)
-        x0, x1 = np.clip(rx - k, 0, gw), np.clip(rx + k + 1, 0, gw)
-        count = table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]
-        return count, (y1 - y0) * (x1 - x0)
-
-    every_y, every_x = np.mgrid[0:gh, 0:gw]
-    count, cells = square(every_y.ravel(), every_x.ravel())
-    density = float(np.median(count / cells))  # isolated events per cell, typically
-    count, cells = square(cy, cx)
-    lam = density * cells
+    count = squares.counts(isolated)
+    density = float(np.median(count / squares.cells))  # isolated events per cell, typically
+    at = squares.flat[which]
+    count, lam = count.ravel()[at], density * squares.cells.ravel()[at]
     out[which] = (count - 1 - lam) > z * np.sqrt(lam + 1.0)
+    return out
+
+
+def scatter_field(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    crowded: np.ndarray,
+    *,
+    cell: int = SCATTER_CELL,
+    reach: int | None = None,
+) -> np.ndarray:
+    """Which events lie in scattered light: where crowded isolated events are a share of all.
+
+    An event is in the field where the square of cells within ``reach`` of its cell
+    holds at least :data:`FIELD_MIN_EVENTS` ``crowded`` events
+    (:func:`crowded_isolated`) and they are at least :data:`FIELD_MIN_SHARE` of the
+    square's events. Around a lamp too slow for the light test its scattered light is
+    a large share of the events; in a scene, crowded isolated events sit among many
+    more of its edges.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        One window's events, on the sensor.
+    sensor_size : (width, height)
+    crowded : numpy.ndarray
+        bool, one per event: :func:`crowded_isolated`'s answer.
+    cell, reach : int
+        As for :func:`crowded_isolated`.
+
+    Returns
+    -------
+    numpy.ndarray
+        bool, one per event.
+
+    Examples
+    --------
+    Ten crowded events among 40 others in one corner of a 640x480 sensor: the events
+    whose square (80 px each way, at cell precision) holds them are in the field.
+
+    >>> from edeflare.events import make_events
+    >>> x = np.r_[np.arange(10) * 3 + 20, np.arange(40) % 20 + 20, 600]
+    >>> y = np.r_[np.full(10, 20), np.arange(40) // 20 + 40, 460]
+    >>> ev = make_events(np.arange(51), x, y, np.ones(51))
+    >>> crowded = np.r_[np.ones(10, bool), np.zeros(41, bool)]
+    >>> field = scatter_field(ev, (640, 480), crowded)
+    >>> bool(field[:50].all()), bool(field[50])
+    (True, False)
+    >>> bool(scatter_field(ev, (640, 480), crowded & (np.arange(51) < 4)).any())  # 4 < 5
+    False
+    """
+    squares = _Squares(check_sensor_size(sensor_size), cell, reach, events)
+    crowded = _judged(events, crowded, "crowded")
+    if crowded.sum() < FIELD_MIN_EVENTS:
+        return np.zeros(events.size, dtype=bool)
+    mine = squares.counts(crowded).ravel()[squares.flat]
+    every = squares.counts().ravel()[squares.flat]
+    return (mine >= FIELD_MIN_EVENTS) & (mine >= FIELD_MIN_SHARE * every)
+
+
+def _judged(events: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
+    mask = np.asarray(mask, dtype=bool)
+    if mask.shape != (events.size,):
+        raise ValueError(
+            f"{name} must hold one bool per event ({events.size}), got shape {mask.shape}"
+        )
+    return mask
+
+
+class _Squares:
+    """A window's events counted per cell, and in each cell's square: the cells within
+    ``reach`` pixels (at cell precision), cut at the sensor's edge. ``flat`` is each
+    event's cell, ``cells`` each square's number of cells ``(gh, gw)``."""
+
+    def __init__(
+        self, sensor_size: tuple[int, int], cell: int, reach: int | None, events: np.ndarray
+    ) -> None:
+        if reach is None:
+            reach = scatter_reach(sensor_size)
+        if cell < 1 or reach < 0:
+            raise ValueError(f"need cell >= 1 and reach >= 0, got cell={cell}, reach={reach}")
+        self.k = int(reach) // int(cell)
+        self.gw, self.gh = -(-sensor_size[0] // cell), -(-sensor_size[1] // cell)
+        self.flat = (events["y"] // cell).astype(np.int64) * self.gw + events["x"] // cell
+        self.cells = self._squares(np.ones((self.gh, self.gw), dtype=np.int64))
+
+    def counts(self, mask: np.ndarray | None = None) -> np.ndarray:
+        """The (masked) events in each cell's square, ``(gh, gw)``."""
+        flat = self.flat if mask is None else self.flat[mask]
+        per_cell = np.bincount(flat, minlength=self.gh * self.gw).reshape(self.gh, self.gw)
+        return self._squares(per_cell)
+
+    def _squares(self, per_cell: np.ndarray) -> np.ndarray:
+        # box sums from a summed-area table with a zero row and column first
+        table = np.zeros((self.gh + 1, self.gw + 1), dtype=np.int64)
+        table[1:, 1:] = per_cell.cumsum(axis=0).cumsum(axis=1)
+        ry, rx = np.arange(self.gh), np.arange(self.gw)
+        y0, y1 = np.clip(ry - self.k, 0, self.gh), np.clip(ry + self.k + 1, 0, self.gh)
+        x0, x1 = np.clip(rx - self.k, 0, self.gw), np.clip(rx + self.k + 1, 0, self.gw)
+        return (
+            table[np.ix_(y1, x1)] - table[np.ix_(y0, x1)]
+            - table[np.ix_(y1, x0)] + table[np.ix_(y0, x0)]
+        )  # fmt: skip
+
+
+def light_free_shifts(
+    events: np.ndarray,
+    sensor_size: SensorSize,
+    support: np.ndarray,
+    *,
+    shift: float,
+    gate: int = 0,
+    crowding: float = 0.0,
+    scatter_shift: float = 0.0,
+) -> np.ndarray:
+    """How much each event's keep logit rises in a window without a light (float64).
+
+    Flare needs a bright source; without one in view, what the network would drop is
+    more likely scene. So every event rises by ``shift``, except:
+
+    - with ``gate``, the isolated ones (fewer than ``gate`` others in their 5x5 square:
+      ``support``, :func:`~edeflare.models.flaremask.event_support`): a lamp too slow
+      for the light test scatters its light into such events;
+    - with ``crowding`` too, only the isolated ones that crowd
+      (:func:`crowded_isolated` at ``z = crowding``): background activity is even;
+    - with ``scatter_shift`` too, in the :func:`scatter_field` of the crowded ones
+      (around the slow lamp) the events with support under :data:`SOURCE_SUPPORT` do
+      not rise either (the dense bloom next to the lamp), the denser ones (the lamp's
+      own) rise by ``scatter_shift`` more, and the crowded isolated ones fall by it.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        One window's events, on the sensor, with no light in view.
+    sensor_size : (width, height)
+    support : numpy.ndarray
+        int, one per event: others of the window in the event's 5x5 square.
+    shift, scatter_shift : float
+        Keep-logit units, at least 0.
+    gate : int
+        Support from which an event is not isolated (0: none is).
+    crowding : float
+        Poisson standard deviations (0: every isolated event is left to the network).
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([0, 1, 2], [5, 6, 40], [5, 5, 40], [1, 1, 1])
+    >>> support = np.array([1, 1, 0])
+    >>> light_free_shifts(ev, (64, 64), support, shift=4.0).tolist()
+    [4.0, 4.0, 4.0]
+    >>> light_free_shifts(ev, (64, 64), support, shift=4.0, gate=1).tolist()
+    [4.0, 4.0, 0.0]
+    """
+    support = np.asarray(support)
+    if support.shape != (events.size,):
+        raise ValueError(f"support must hold one count per event ({events.size}), got "
+                         f"shape {support.shape}")  # fmt: skip
+    if not gate:
+        return np.full(events.size, float(shift))
+    isolated = support < gate
+    if not crowding:
+        return float(shift) * ~isolated
+    crowded = crowded_isolated(events, sensor_size, isolated, z=crowding)
+    raised = ~crowded
+    if not scatter_shift:
+        return float(shift) * raised
+    field = scatter_field(events, sensor_size, crowded)
+    dense = support >= SOURCE_SUPPORT
+    raised &= ~(field & ~isolated & ~dense)  # the bloom next to the slow lamp
+    out = float(shift) * raised
+    out += float(scatter_shift) * (field & dense)  # the lamp itself
+    out -= float(scatter_shift) * (field & crowded)  # its scattered light
     return out

@@ -71,6 +71,7 @@ class ModelCard:
     light_free_shift: float = 0.0  # mask models: keep logit raised in windows without a light
     light_free_support: int = 0  # ... only at events with this many others in their 5x5 square
     light_free_crowding: float = 0.0  # ... and at isolated ones that do not crowd (scatter.py)
+    scatter_shift: float = 0.0  # ... and around a lamp too slow for the light test (scatter.py)
     far_shift: float = 0.0  # mask models: keep logit raised far from every light (halos.py)
 
     def to_dict(self) -> dict[str, Any]:
