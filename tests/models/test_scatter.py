@@ -10,8 +10,10 @@ import pytest
 from edeflare.errors import ParameterError
 from edeflare.events import make_events
 from edeflare.models.flaremask import event_support
+from edeflare.models.ghosts import covered_us
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.scatter import (
+    FIELD_MAX_RATE,
     FIELD_MIN_EVENTS,
     FIELD_MIN_SHARE,
     SCATTER_CELL,
@@ -151,15 +153,22 @@ def test_the_light_free_shift_reaches_the_isolated_events_that_do_not_crowd():
     assert ModelDeflarer(weights).light_free_crowding == 3.0
 
 
-def _field_by_loops(events, size, crowded, cell, reach):
+def _field_by_loops(events, size, crowded, cell, reach, span_us):
     """scatter_field's definition, one event at a time."""
     k = reach // cell
+    gw, gh = -(-size[0] // cell), -(-size[1] // cell)
     cy, cx = events["y"].astype(int) // cell, events["x"].astype(int) // cell
     out = np.zeros(events.size, bool)
     for i in range(events.size):
         near = (np.abs(cy - cy[i]) <= k) & (np.abs(cx - cx[i]) <= k)
         mine = (near & crowded).sum()
-        out[i] = mine >= FIELD_MIN_EVENTS and mine >= FIELD_MIN_SHARE * near.sum()
+        cells_y = min(cy[i] + k, gh - 1) - max(cy[i] - k, 0) + 1
+        cells_x = min(cx[i] + k, gw - 1) - max(cx[i] - k, 0) + 1
+        rate = near.sum() / (cells_y * cells_x * cell**2) / (span_us * 1e-6)
+        out[i] = (
+            mine >= FIELD_MIN_EVENTS and mine >= FIELD_MIN_SHARE * near.sum()
+            and rate <= FIELD_MAX_RATE
+        )  # fmt: skip
     return out
 
 
@@ -186,18 +195,34 @@ def test_scatter_field_equals_the_definition_by_loops():
     isolated = event_support(ev, size) < 2
     crowded = crowded_isolated(ev, size, isolated, z=3.0)
     assert crowded[parts["ring"]].all() and not crowded[parts["lamp"]].any()
-    for cell, reach in ((16, 80), (8, 40), (16, 0)):
+    for cell, reach, span in ((16, 80, 20_000), (8, 40, 20_000), (16, 0, 20_000), (8, 40, 300)):
         np.testing.assert_array_equal(
-            scatter_field(ev, size, crowded, cell=cell, reach=reach),
-            _field_by_loops(ev, size, crowded, cell, reach),
+            scatter_field(ev, size, crowded, cell=cell, reach=reach, span_us=span),
+            _field_by_loops(ev, size, crowded, cell, reach, span),
         )
-    field = scatter_field(ev, size, crowded)
+    field = scatter_field(ev, size, crowded)  # over the events' own 12.4 ms
     assert field[parts["lamp"]].all() and field[parts["ring"]].all()
     assert field[parts["bloom"]].all()
     far = _far_from(ev[parts["even"]], 303, 203)
     assert far.sum() >= 25 and not field[parts["even"]][far].any()
     with pytest.raises(ValueError, match="crowded must hold one bool per event"):
         scatter_field(ev, size, crowded[:-1])
+    with pytest.raises(ValueError, match="span_us must be >= 1"):
+        scatter_field(ev, size, crowded, span_us=0)
+
+
+def test_a_scattered_light_field_is_dark():
+    # the lamp's square (11x11 cells of 16 px: 30,976 px) holds its 36 events, the
+    # bloom's 11, the ring's 30 and 6 of the even spread: 83 events, at most 5 per pixel
+    # and second from 83 / (5e-6 * 30976) = 535.9 us on; in less time they are a lit
+    # texture's, not scattered light
+    ev, parts = _slow_lamp_window()
+    size = (640, 480)
+    assert FIELD_MAX_RATE == 5.0
+    crowded = crowded_isolated(ev, size, event_support(ev, size) < 2, z=3.0)
+    lamp = parts["lamp"]
+    assert scatter_field(ev, size, crowded, span_us=536)[lamp].all()
+    assert not scatter_field(ev, size, crowded, span_us=535)[lamp].any()
 
 
 def _far_from(events, x, y):
@@ -249,8 +274,9 @@ def test_the_model_adds_the_light_free_shifts_in_a_window_without_a_light():
         scatter_shift=4.0,
     )  # fmt: skip
     expected = light_free_shifts(
-        ev, size, event_support(ev, size), shift=4.0, gate=2, crowding=3.0, scatter_shift=4.0
-    )
+        ev, size, event_support(ev, size), shift=4.0, gate=2, crowding=3.0, scatter_shift=4.0,
+        span_us=covered_us(ev, 0, 20_000),
+    )  # fmt: skip
     np.testing.assert_allclose(d.window_logits([(0, ev)], size)[0] - base_logits, expected)
     for bad in (-1.0, float("nan"), "4"):
         with pytest.raises(ParameterError, match="scatter_shift"):

@@ -340,8 +340,10 @@ class ModelDeflarer:
         self.scatter_shift = check_logit_shift(shift, "scatter_shift")
         shift = card.far_shift if far_shift is None else far_shift
         self.far_shift = check_logit_shift(shift, "far_shift")
-        shifts = ("ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift")
-        for name in (*shifts, "scatter_shift"):
+        for name in (
+            "ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift",
+            "scatter_shift",
+        ):  # fmt: skip
             if getattr(self, name) and not isinstance(model, FlareMaskNet):
                 raise EdeflareError(
                     f"{weights}: {name} needs a mask model, not a {card.preset} (voxel-to-voxel)"
@@ -508,7 +510,7 @@ class ModelDeflarer:
                 v += light_free_shifts(
                     events, sensor_size, support, shift=self.light_free_shift,
                     gate=self.light_free_support, crowding=self.light_free_crowding,
-                    scatter_shift=self.scatter_shift,
+                    scatter_shift=self.scatter_shift, span_us=span,
                 )  # fmt: skip
                 continue
             ghosts = None  # where the lights' ghosts can be: for the ghost prior and far shift

@@ -28,6 +28,7 @@ import numpy as np
 from ..events import SensorSize, check_sensor_size
 
 __all__ = [
+    "FIELD_MAX_RATE",
     "FIELD_MIN_EVENTS",
     "FIELD_MIN_SHARE",
     "SCATTER_CELL",
@@ -55,6 +56,16 @@ FIELD_MIN_EVENTS = 5
 
 FIELD_MIN_SHARE = 0.1
 """... and they must be at least this share of the square's events."""
+
+FIELD_MAX_RATE = 5.0
+"""... and the square's events fire at most this many times per pixel and second, over
+its area: scattered light is weak, so its field is a dark part of the sensor. A lit
+scene's texture (foliage, a road's surface by day) also holds crowded isolated events,
+but among far more events: 5.4-31 per pixel and second (median 13.8) in the Prophesee
+Gen4.1 daytime street's squares where the field would lie, 2.4 at most in the digitised
+night window of issue 13 (1.5 at its calibrated lamp rate), 3.7 at the 95th percentile
+in ``eflare-r-sim``'s and the real DAVIS346 scenes' few fields
+(``experiments/reference-window/field_rate.py``)."""
 
 SOURCE_SUPPORT = 6
 """In a field, an event with at least this many others of its window in its 5x5 square
@@ -135,8 +146,12 @@ def crowded_isolated(
     isolated = _judged(events, isolated, "isolated")
     if not z >= 0:
         raise ValueError(f"z must be >= 0, got {z!r}")
-    squares = _Squares((width, height), cell, reach, events)
-    out = np.zeros(events.size, dtype=bool)
+    return _crowded(_Squares((width, height), cell, reach, events), isolated, z)
+
+
+def _crowded(squares: _Squares, isolated: np.ndarray, z: float) -> np.ndarray:
+    """:func:`crowded_isolated` on a window's counted squares (checked arguments)."""
+    out = np.zeros(isolated.size, dtype=bool)
     which = np.flatnonzero(isolated)
     if which.size < 2:
         return out
@@ -153,6 +168,7 @@ def scatter_field(
     sensor_size: SensorSize,
     crowded: np.ndarray,
     *,
+    span_us: int | None = None,
     cell: int = SCATTER_CELL,
     reach: int | None = None,
 ) -> np.ndarray:
@@ -160,10 +176,12 @@ def scatter_field(
 
     An event is in the field where the square of cells within ``reach`` of its cell
     holds at least :data:`FIELD_MIN_EVENTS` ``crowded`` events
-    (:func:`crowded_isolated`) and they are at least :data:`FIELD_MIN_SHARE` of the
-    square's events. Around a lamp too slow for the light test its scattered light is
-    a large share of the events; in a scene, crowded isolated events sit among many
-    more of its edges.
+    (:func:`crowded_isolated`), they are at least :data:`FIELD_MIN_SHARE` of the
+    square's events, and those fire at most :data:`FIELD_MAX_RATE` times per pixel and
+    second over ``span_us``. Around a lamp too slow for the light test its scattered
+    light is a large share of the few events of a dark part of the sensor; in a scene,
+    crowded isolated events sit among many more of its edges, and in a lit scene's
+    texture among far more events.
 
     Parameters
     ----------
@@ -172,6 +190,9 @@ def scatter_field(
     sensor_size : (width, height)
     crowded : numpy.ndarray
         bool, one per event: :func:`crowded_isolated`'s answer.
+    span_us : int, optional
+        The time the window's events cover, in µs (default: from its first event to its
+        last; :func:`~edeflare.models.ghosts.covered_us` is what the model passes).
     cell, reach : int
         As for :func:`crowded_isolated`.
 
@@ -190,19 +211,41 @@ def scatter_field(
     >>> y = np.r_[np.full(10, 20), np.arange(40) // 20 + 40, 460]
     >>> ev = make_events(np.arange(51), x, y, np.ones(51))
     >>> crowded = np.r_[np.ones(10, bool), np.zeros(41, bool)]
-    >>> field = scatter_field(ev, (640, 480), crowded)
+    >>> field = scatter_field(ev, (640, 480), crowded, span_us=20_000)
     >>> bool(field[:50].all()), bool(field[50])
     (True, False)
-    >>> bool(scatter_field(ev, (640, 480), crowded & (np.arange(51) < 4)).any())  # 4 < 5
+    >>> bool(scatter_field(ev, (640, 480), crowded & (np.arange(51) < 4), span_us=20_000).any())
+    False
+
+    The same events within 51 µs fire over 50 times per pixel and second over their
+    squares (7x7 to 9x7 cells): a lit texture, not scattered light.
+
+    >>> bool(scatter_field(ev, (640, 480), crowded).any())
     False
     """
     squares = _Squares(check_sensor_size(sensor_size), cell, reach, events)
     crowded = _judged(events, crowded, "crowded")
+    return _field(squares, crowded, _span(events, span_us))
+
+
+def _span(events: np.ndarray, span_us: int | None) -> int:
+    """The window's time its events cover (µs): given, or their own extent."""
+    if span_us is None:
+        return int(events["t"][-1] - events["t"][0]) + 1 if events.size else 1
+    if not span_us >= 1:
+        raise ValueError(f"span_us must be >= 1, got {span_us!r}")
+    return int(span_us)
+
+
+def _field(squares: _Squares, crowded: np.ndarray, span_us: int) -> np.ndarray:
+    """:func:`scatter_field` on a window's counted squares (checked arguments)."""
     if crowded.sum() < FIELD_MIN_EVENTS:
-        return np.zeros(events.size, dtype=bool)
+        return np.zeros(crowded.size, dtype=bool)
     mine = squares.counts(crowded).ravel()[squares.flat]
     every = squares.counts().ravel()[squares.flat]
-    return (mine >= FIELD_MIN_EVENTS) & (mine >= FIELD_MIN_SHARE * every)
+    pixels = squares.cells.ravel()[squares.flat] * squares.cell**2
+    dark = every <= FIELD_MAX_RATE * 1e-6 * span_us * pixels
+    return (mine >= FIELD_MIN_EVENTS) & (mine >= FIELD_MIN_SHARE * every) & dark
 
 
 def _judged(events: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
@@ -226,7 +269,7 @@ class _Squares:
             reach = scatter_reach(sensor_size)
         if cell < 1 or reach < 0:
             raise ValueError(f"need cell >= 1 and reach >= 0, got cell={cell}, reach={reach}")
-        self.k = int(reach) // int(cell)
+        self.cell, self.k = int(cell), int(reach) // int(cell)
         self.gw, self.gh = -(-sensor_size[0] // cell), -(-sensor_size[1] // cell)
         self.flat = (events["y"] // cell).astype(np.int64) * self.gw + events["x"] // cell
         self.cells = self._squares(np.ones((self.gh, self.gw), dtype=np.int64))
@@ -259,6 +302,7 @@ def light_free_shifts(
     gate: int = 0,
     crowding: float = 0.0,
     scatter_shift: float = 0.0,
+    span_us: int | None = None,
 ) -> np.ndarray:
     """How much each event's keep logit rises in a window without a light (float64).
 
@@ -288,6 +332,8 @@ def light_free_shifts(
         Support from which an event is not isolated (0: none is).
     crowding : float
         Poisson standard deviations (0: every isolated event is left to the network).
+    span_us : int, optional
+        The time the window's events cover (:func:`scatter_field`).
 
     Examples
     --------
@@ -308,11 +354,16 @@ def light_free_shifts(
     isolated = support < gate
     if not crowding:
         return float(shift) * ~isolated
-    crowded = crowded_isolated(events, sensor_size, isolated, z=crowding)
+    if not crowding >= 0 or not scatter_shift >= 0:
+        raise ValueError(f"crowding and scatter_shift must be >= 0, got {crowding!r} "
+                         f"and {scatter_shift!r}")  # fmt: skip
+    # one count of the window's cells serves both the crowding and the field
+    squares = _Squares(check_sensor_size(sensor_size), SCATTER_CELL, None, events)
+    crowded = _crowded(squares, isolated, crowding)
     raised = ~crowded
     if not scatter_shift:
         return float(shift) * raised
-    field = scatter_field(events, sensor_size, crowded)
+    field = _field(squares, crowded, _span(events, span_us))
     dense = support >= SOURCE_SUPPORT
     raised &= ~(field & ~isolated & ~dense)  # the bloom next to the slow lamp
     out = float(shift) * raised
