@@ -135,3 +135,31 @@ def test_cli_export_checks_parity_and_refuses_bad_requests(mask_weights, tmp_pat
     assert main(["export", str(tmp_path / "x.pt"), "--sensor-size", "64x48"]) == 1
     assert "must be a .onnx file" in capsys.readouterr().err
     assert not (tmp_path / "x.onnx").exists() and not (tmp_path / "x.pt").exists()
+
+
+def test_a_graph_is_exported_once_per_model_size_and_opset(monkeypatch):
+    from edeflare.models import export
+
+    monkeypatch.setattr(export, "_EXPORTED", type(export._EXPORTED)())
+    made = []
+    real_export = export._export
+
+    def counting(*args):
+        made.append(args[2:])
+        return real_export(*args)
+
+    monkeypatch.setattr(export, "_export", counting)
+    model, card = _trained_like("mask.lite"), ModelCard(preset="mask.lite", seed=7)
+    first = export.onnx_bytes(model, card, (64, 48))
+    assert export.onnx_bytes(model, card, (64, 48)) == first and len(made) == 1
+    export.onnx_bytes(model, card, (32, 24))  # another size: its own graph
+    assert made == [((64, 48), export.DEFAULT_OPSET), ((32, 24), export.DEFAULT_OPSET)]
+    with torch.no_grad():  # new weights, same object: a new graph, not the stale one
+        next(model.parameters()).add_(1.0)
+    assert export.onnx_bytes(model, card, (64, 48)) != first and len(made) == 3
+    other = ModelCard(preset="mask.lite", seed=8)  # the card travels in the metadata
+    assert export.onnx_bytes(model, other, (64, 48)) != first and len(made) == 4
+    for k in range(export._EXPORTED_MAX + 2):  # the oldest graphs go first
+        export.onnx_bytes(model, card, (16 + k, 16))
+    assert len(export._EXPORTED) == export._EXPORTED_MAX
+    assert ((64, 48), export.DEFAULT_OPSET) not in [key[1:] for key in export._EXPORTED]
