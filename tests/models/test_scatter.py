@@ -261,6 +261,9 @@ def test_light_free_shifts_raise_the_lamp_and_lower_its_scattered_light():
     np.testing.assert_array_equal(shifts(gate=2, scatter_shift=4.0), gated)
     with pytest.raises(ValueError, match="support must hold one count per event"):
         light_free_shifts(ev, size, support[:3], shift=4.0, gate=2)
+    for bad in ({"crowding": -1.0}, {"crowding": 3.0, "scatter_shift": float("nan")}):
+        with pytest.raises(ValueError, match="crowding and scatter_shift must be >= 0"):
+            light_free_shifts(ev, size, support, shift=4.0, gate=2, **bad)
 
 
 def test_the_model_adds_the_light_free_shifts_in_a_window_without_a_light():
