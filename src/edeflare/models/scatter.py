@@ -23,6 +23,8 @@ others' (median over windows).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..events import SensorSize, check_sensor_size
@@ -241,11 +243,11 @@ def _field(squares: _Squares, crowded: np.ndarray, span_us: int) -> np.ndarray:
     """:func:`scatter_field` on a window's counted squares (checked arguments)."""
     if crowded.sum() < FIELD_MIN_EVENTS:
         return np.zeros(crowded.size, dtype=bool)
-    mine = squares.counts(crowded).ravel()[squares.flat]
-    every = squares.counts().ravel()[squares.flat]
-    pixels = squares.cells.ravel()[squares.flat] * squares.cell**2
-    dark = every <= FIELD_MAX_RATE * 1e-6 * span_us * pixels
-    return (mine >= FIELD_MIN_EVENTS) & (mine >= FIELD_MIN_SHARE * every) & dark
+    # decided per cell's square, then read at each event's cell: one gather
+    mine, every = squares.counts(crowded), squares.counts()
+    dark = every <= FIELD_MAX_RATE * 1e-6 * span_us * squares.cells * squares.cell**2
+    field = (mine >= FIELD_MIN_EVENTS) & (mine >= FIELD_MIN_SHARE * every) & dark
+    return field.ravel()[squares.flat]
 
 
 def _judged(events: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
@@ -272,25 +274,43 @@ class _Squares:
         self.cell, self.k = int(cell), int(reach) // int(cell)
         self.gw, self.gh = -(-sensor_size[0] // cell), -(-sensor_size[1] // cell)
         self.flat = (events["y"] // cell).astype(np.int64) * self.gw + events["x"] // cell
-        self.cells = self._squares(np.ones((self.gh, self.gw), dtype=np.int64))
+        self._corners, self.cells = _square_corners(self.gw, self.gh, self.k)
 
     def counts(self, mask: np.ndarray | None = None) -> np.ndarray:
         """The (masked) events in each cell's square, ``(gh, gw)``."""
         flat = self.flat if mask is None else self.flat[mask]
         per_cell = np.bincount(flat, minlength=self.gh * self.gw).reshape(self.gh, self.gw)
-        return self._squares(per_cell)
+        return _box_sums(per_cell, self._corners)
 
-    def _squares(self, per_cell: np.ndarray) -> np.ndarray:
-        # box sums from a summed-area table with a zero row and column first
-        table = np.zeros((self.gh + 1, self.gw + 1), dtype=np.int64)
-        table[1:, 1:] = per_cell.cumsum(axis=0).cumsum(axis=1)
-        ry, rx = np.arange(self.gh), np.arange(self.gw)
-        y0, y1 = np.clip(ry - self.k, 0, self.gh), np.clip(ry + self.k + 1, 0, self.gh)
-        x0, x1 = np.clip(rx - self.k, 0, self.gw), np.clip(rx + self.k + 1, 0, self.gw)
-        return (
-            table[np.ix_(y1, x1)] - table[np.ix_(y0, x1)]
-            - table[np.ix_(y1, x0)] + table[np.ix_(y0, x0)]
-        )  # fmt: skip
+
+def _box_sums(per_cell: np.ndarray, corners: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Each cell's square sum of ``per_cell``: a summed-area table with a zero row and
+    column first, read at the squares' four corners (:func:`_square_corners`)."""
+    gh, gw = per_cell.shape
+    table = np.zeros((gh + 1, gw + 1), dtype=np.int64)
+    table[1:, 1:] = per_cell.cumsum(axis=0).cumsum(axis=1)
+    t = table.ravel()
+    c11, c01, c10, c00 = corners
+    return (t[c11] - t[c01] - t[c10] + t[c00]).reshape(gh, gw)
+
+
+@functools.lru_cache(maxsize=16)
+def _square_corners(gw: int, gh: int, k: int) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
+    """Where each cell's square's corners lie in the summed-area table of a ``(gh, gw)``
+    grid (flat indices), and each square's number of cells: the same for every window
+    of a sensor, so made once."""
+    ry, rx = np.arange(gh), np.arange(gw)
+    y0, y1 = np.clip(ry - k, 0, gh), np.clip(ry + k + 1, 0, gh)
+    x0, x1 = np.clip(rx - k, 0, gw), np.clip(rx + k + 1, 0, gw)
+
+    def at(ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        return (ys[:, None] * (gw + 1) + xs[None, :]).ravel()
+
+    corners = (at(y1, x1), at(y0, x1), at(y1, x0), at(y0, x0))
+    cells = ((y1 - y0)[:, None] * (x1 - x0)[None, :]).astype(np.int64)
+    for a in (*corners, cells):
+        a.flags.writeable = False  # shared by every window
+    return corners, cells
 
 
 def light_free_shifts(
