@@ -259,6 +259,13 @@ def test_light_free_shifts_raise_the_lamp_and_lower_its_scattered_light():
     np.testing.assert_array_equal(scatter[parts["even"]][far], 4.0)
     # without crowding there is no field: the scatter shift does nothing
     np.testing.assert_array_equal(shifts(gate=2, scatter_shift=4.0), gated)
+    # the same events within 100 us: every square near the lamp holds its 36 events and
+    # more, over the 15.5 that 5 per pixel and second allow there. A lit texture's
+    # crowding is its own: the crowded isolated events rise too, and there is no field
+    lit = shifts(gate=2, crowding=3.0, scatter_shift=4.0, span_us=100)
+    for part in ("lamp", "bloom", "ring"):
+        np.testing.assert_array_equal(lit[parts[part]], 4.0)
+    np.testing.assert_array_equal(lit[parts["even"]][far], 4.0)
     with pytest.raises(ValueError, match="support must hold one count per event"):
         light_free_shifts(ev, size, support[:3], shift=4.0, gate=2)
     for bad in ({"crowding": -1.0}, {"crowding": 3.0, "scatter_shift": float("nan")}):

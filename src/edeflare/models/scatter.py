@@ -227,7 +227,7 @@ def scatter_field(
     """
     squares = _Squares(check_sensor_size(sensor_size), cell, reach, events)
     crowded = _judged(events, crowded, "crowded")
-    return _field(squares, crowded, _span(events, span_us))
+    return _field(squares, crowded, _dark(squares, _span(events, span_us)))
 
 
 def _span(events: np.ndarray, span_us: int | None) -> int:
@@ -239,15 +239,22 @@ def _span(events: np.ndarray, span_us: int | None) -> int:
     return int(span_us)
 
 
-def _field(squares: _Squares, crowded: np.ndarray, span_us: int) -> np.ndarray:
-    """:func:`scatter_field` on a window's counted squares (checked arguments)."""
+def _field(squares: _Squares, crowded: np.ndarray, dark: np.ndarray) -> np.ndarray:
+    """:func:`scatter_field` on a window's counted squares (checked arguments), its
+    squares' darkness given (:func:`_dark`)."""
     if crowded.sum() < FIELD_MIN_EVENTS:
         return np.zeros(crowded.size, dtype=bool)
     # decided per cell's square, then read at each event's cell: one gather
-    mine, every = squares.counts(crowded), squares.counts()
-    dark = every <= FIELD_MAX_RATE * 1e-6 * span_us * squares.cells * squares.cell**2
+    mine, every = squares.counts(crowded), squares.every
     field = (mine >= FIELD_MIN_EVENTS) & (mine >= FIELD_MIN_SHARE * every) & dark
     return field.ravel()[squares.flat]
+
+
+def _dark(squares: _Squares, span_us: int) -> np.ndarray:
+    """Which cells' squares, ``(gh, gw)``, fire at most :data:`FIELD_MAX_RATE` times per
+    pixel and second over ``span_us``: scattered light is weak."""
+    pixels = squares.cells * squares.cell**2
+    return squares.every <= FIELD_MAX_RATE * 1e-6 * span_us * pixels
 
 
 def _judged(events: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
@@ -275,6 +282,11 @@ class _Squares:
         self.gw, self.gh = -(-sensor_size[0] // cell), -(-sensor_size[1] // cell)
         self.flat = (events["y"] // cell).astype(np.int64) * self.gw + events["x"] // cell
         self._corners, self.cells = _square_corners(self.gw, self.gh, self.k)
+
+    @functools.cached_property
+    def every(self) -> np.ndarray:
+        """All the events in each cell's square, ``(gh, gw)``."""
+        return self.counts()
 
     def counts(self, mask: np.ndarray | None = None) -> np.ndarray:
         """The (masked) events in each cell's square, ``(gh, gw)``."""
@@ -333,7 +345,10 @@ def light_free_shifts(
       ``support``, :func:`~edeflare.models.flaremask.event_support`): a lamp too slow
       for the light test scatters its light into such events;
     - with ``crowding`` too, only the isolated ones that crowd
-      (:func:`crowded_isolated` at ``z = crowding``): background activity is even;
+      (:func:`crowded_isolated` at ``z = crowding``) in a dark part of the sensor (their
+      square's events firing at most :data:`FIELD_MAX_RATE` times per pixel and second
+      over ``span_us``): background activity is even, and crowding among a lit
+      texture's many events is the texture's;
     - with ``scatter_shift`` too, in the :func:`scatter_field` of the crowded ones
       (around the slow lamp) the events with support under :data:`SOURCE_SUPPORT` do
       not rise either (the dense bloom next to the lamp), the denser ones (the lamp's
@@ -353,7 +368,8 @@ def light_free_shifts(
     crowding : float
         Poisson standard deviations (0: every isolated event is left to the network).
     span_us : int, optional
-        The time the window's events cover (:func:`scatter_field`).
+        The time the window's events cover (:func:`scatter_field`; default: from the
+        first event to the last).
 
     Examples
     --------
@@ -379,11 +395,13 @@ def light_free_shifts(
                          f"and {scatter_shift!r}")  # fmt: skip
     # one count of the window's cells serves both the crowding and the field
     squares = _Squares(check_sensor_size(sensor_size), SCATTER_CELL, None, events)
-    crowded = _crowded(squares, isolated, crowding)
+    # crowding in a lit texture is the texture's: only in the dark is it scattered light
+    dark = _dark(squares, _span(events, span_us))
+    crowded = _crowded(squares, isolated, crowding) & dark.ravel()[squares.flat]
     raised = ~crowded
     if not scatter_shift:
         return float(shift) * raised
-    field = _field(squares, crowded, _span(events, span_us))
+    field = _field(squares, crowded, dark)
     dense = support >= SOURCE_SUPPORT
     raised &= ~(field & ~isolated & ~dense)  # the bloom next to the slow lamp
     out = float(shift) * raised
