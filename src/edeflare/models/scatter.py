@@ -67,7 +67,8 @@ but among far more events: 5.4-31 per pixel and second (median 13.8) in the Prop
 Gen4.1 daytime street's squares where the field would lie, 2.4 at most in the digitised
 night window of issue 13 (1.5 at its calibrated lamp rate), 3.7 at the 95th percentile
 in ``eflare-r-sim``'s and the real DAVIS346 scenes' few fields
-(``experiments/reference-window/field_rate.py``)."""
+(``experiments/reference-window/field_rate.py``). :func:`light_free_shifts` holds
+crowding itself to the same darkness."""
 
 SOURCE_SUPPORT = 6
 """In a field, an event with at least this many others of its window in its 5x5 square
