@@ -122,13 +122,14 @@ def main() -> None:
         preset, batch, lr = RUNS[name]
         cmd = [
             sys.executable, "-m", "edeflare", "train", str(mix),
-            "--out", str(args.work / name), "--config", "cpu", "--preset", preset, "--crop", "260x346",
+            "--out", str(args.work / name), "--config", "cpu", "--preset", preset,
+            "--crop", "260x346",
             "--loss", "mse", "--iterations", "100000", "--batch-size", str(batch),
             "--lr", str(lr), "--polarity-flip", "--precompute", "--device", args.device,
             "--val-every", "1000", "--checkpoint-every", "500",
             "--time-limit", f"{minutes:.2f}",
         ]  # fmt: skip
-        log = open(args.out / f"{name}_log.txt", "w")  # noqa: SIM115 (closed below)
+        log = open(args.out / f"{name}_log.txt", "w")  # closed below
         procs[name] = (subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT), log)
     codes = {}
     for name, (proc, log) in procs.items():
