@@ -558,3 +558,25 @@ def test_concat_and_select_equal_numpy_on_every_layout(rng):
         concat_events([a, a.astype([("t", "<i8"), ("x", "<u2"), ("y", "<u2"), ("p", "<u2")])])
     with pytest.raises(EventsError, match="dtype"):
         select_events(np.zeros(3), np.ones(3, bool))
+
+
+def test_isin_keys_equals_numpy_isin_on_streams_with_ties_and_repeats(rng):
+    from edeflare.events import event_keys, isin_keys
+
+    size = (64, 48)
+    a = random_events(rng, 5000, size)
+    a["t"] //= 50  # many events share a time stamp: their keys are out of order
+    b = np.concatenate([a[rng.random(a.size) < 0.4], random_events(rng, 300, size)])
+    b = b[rng.permutation(b.size)]  # unsorted, with repeats below
+    b = np.concatenate([b, b[:100]])
+    ka, kb = event_keys(a, size), event_keys(b, size)
+    got = isin_keys(ka, kb)
+    assert got.dtype == bool and np.array_equal(got, np.isin(ka, kb))
+    assert 0.3 < got.mean() < 0.6  # both outcomes occur
+    assert np.array_equal(isin_keys(kb, ka), np.isin(kb, ka))
+    # hand-computed: a key above, below and between every key of ``of``
+    assert isin_keys(np.array([0, 4, 7, 10, 11]), np.array([10, 4, 7])).tolist() == [
+        False, True, True, True, False,
+    ]  # fmt: skip
+    assert isin_keys(np.array([], np.int64), kb).shape == (0,)
+    assert not isin_keys(ka, np.array([], np.int64)).any()

@@ -34,7 +34,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import EventsError
-from ..events import SensorSize, check_events, check_sensor_size, event_keys, window_start_for
+from ..events import (
+    SensorSize,
+    check_events,
+    check_sensor_size,
+    event_keys,
+    isin_keys,
+    window_start_for,
+)
 from ..voxel import encode_polarity
 
 __all__ = [
@@ -207,10 +214,10 @@ def deletion_shares(
     for ev in (events_in, events_gt, events_out):
         check_events(ev, sensor_size)
     keys_in, keys_out = event_keys(events_in, sensor_size), event_keys(events_out, sensor_size)
-    if not np.isin(keys_out, keys_in).all():
+    if not isin_keys(keys_out, keys_in).all():
         return None
-    is_true = np.isin(keys_in, event_keys(events_gt, sensor_size))
-    kept = np.isin(keys_in, keys_out)
+    is_true = isin_keys(keys_in, event_keys(events_gt, sensor_size))
+    kept = isin_keys(keys_in, keys_out)
     flare_removed = float(1 - kept[~is_true].mean()) if (~is_true).any() else math.nan
     true_kept = float(kept[is_true].mean()) if is_true.any() else math.nan
     return flare_removed, true_kept

@@ -74,7 +74,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import ParameterError
-from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, event_keys
+from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, event_keys, isin_keys
 from .flare import GhostSpec
 
 __all__ = ["SensingConfig", "in_ghosts", "source_track", "sparse_sensing"]
@@ -319,7 +319,7 @@ def sparse_sensing(
     q = _log_uniform(gen, *config.survival)
     ghosts_on = config.ghost_survival[1] > 0 and len(ghosts) > 0
     q_ghost = _log_uniform(gen, *config.ghost_survival) if ghosts_on else 0.0
-    is_flare = np.isin(event_keys(inp, size), event_keys(streams["flare"], size))
+    is_flare = isin_keys(event_keys(inp, size), event_keys(streams["flare"], size))
     step = (inp["t"].astype(np.int64) - int(t_start_us)) // config.step_us
     light_step = (light["t"].astype(np.int64) - int(t_start_us)) // config.step_us
     near = np.zeros(inp.size, dtype=bool)
@@ -352,7 +352,7 @@ def sparse_sensing(
         survival[is_flare & in_ghosts(inp, track, ghosts, size)] = q_ghost
     drop = is_flare & ~near & (gen.random(inp.size) >= survival)
     kept = inp[~drop]
-    restored = light[~np.isin(event_keys(light, size), event_keys(kept, size))]
+    restored = light[~isin_keys(event_keys(light, size), event_keys(kept, size))]
     t_end = int(inp["t"][-1]) + 1 if t_end_us is None and inp.size else int(t_end_us or t_start_us)
     rate = _log_uniform(gen, *config.noise_rate) if config.noise_rate[1] > 0 else 0.0
     n_noise = int(gen.poisson(rate * width * height * max(t_end - int(t_start_us), 0) / 1e6))
@@ -365,7 +365,7 @@ def sparse_sensing(
     new_input = np.concatenate([kept, restored, noise, hot])
     new_input = new_input[np.argsort(new_input["t"], kind="stable")]
     true = np.concatenate([streams["gt"], light, inp[is_flare & near], noise])
-    target = new_input[np.isin(event_keys(new_input, size), event_keys(true, size))]
+    target = new_input[isin_keys(event_keys(new_input, size), event_keys(true, size))]
     out = dict(streams)
     out.update(input=new_input, gt=target, gt_full=streams["gt"])
     return out
