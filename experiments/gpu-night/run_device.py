@@ -38,21 +38,11 @@ import torch
 from edeflare.data.generate import generate_dataset
 from edeflare.data.recipe import RECIPES
 from edeflare.models.weights import load_model, save_model
-from edeflare.sim.background import SceneConfig
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "day-mix"))
+from gen_day import DAY_SCENE  # the street lit as by day
 
 RESULTS: dict = {}
-# experiments/day-mix/gen_day.py's street lit as by day
-DAY_SCENE = SceneConfig(
-    sky_level=(80.0, 200.0),
-    building_level=(60.0, 200.0),
-    road_level=(50.0, 150.0),
-    marking_level=(120.0, 230.0),
-    window_level=(80.0, 230.0),
-    texture_contrast=(0.1, 0.35),
-    pan_px_per_s=(20.0, 200.0),
-    zoom_per_s=(0.0, 0.8),
-    lamps=(0, 2),
-)
 RUNS = {
     # name: (preset, batch, lr)
     "lite": ("unet2d.lite", 16, 1e-3),
