@@ -371,7 +371,7 @@ def sort_events(events: np.ndarray) -> np.ndarray:
 def event_keys(events: np.ndarray, sensor_size: SensorSize) -> np.ndarray:
     """One ``int64`` per event, equal exactly for equal ``(t, x, y, p)`` on ``sensor_size``.
 
-    For finding the events of one stream in another (``np.isin``, ``np.searchsorted``):
+    For finding the events of one stream in another (:func:`isin_keys`):
     ``((t * W + x) * H + y) * 2 + p`` (exact while ``t`` stays below
     ``2**62 / (W H)`` us: 58 days at 1280x720).
 
@@ -379,7 +379,7 @@ def event_keys(events: np.ndarray, sensor_size: SensorSize) -> np.ndarray:
     --------
     >>> a = make_events([0, 5, 5], [1, 2, 2], [0, 0, 0], [1, 1, 0])
     >>> b = make_events([5], [2], [0], [0])
-    >>> np.isin(event_keys(a, (4, 3)), event_keys(b, (4, 3))).tolist()
+    >>> isin_keys(event_keys(a, (4, 3)), event_keys(b, (4, 3))).tolist()
     [False, False, True]
     """
     width, height = sensor_size
