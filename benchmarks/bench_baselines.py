@@ -35,7 +35,7 @@ from _common import best_of, random_events, report
 
 from edeflare.baselines.efr import EFRFilter
 from edeflare.data.toy import toy_flare_pair
-from edeflare.deflare import create_method, list_methods
+from edeflare.methods import create_method, list_methods
 
 SIZE = (640, 480)
 TARGETS = {"efr": 1.0, "pfd-a": 2.0, "pfd-b": 3.0}

@@ -6,7 +6,7 @@ default, are per-window work after the network: a light test on 8x8 cells, aroun
 light the distances of the events near it, the ghosts' cells with a neighbourhood count
 of the events in them, and around each light the events binned by angle and ring. A
 window without a light costs one cell count. Each case de-flares one recording in
-memory (``edeflare.deflare``, the model loaded and warmed once per row), best of
+memory (``edeflare.methods``, the model loaded and warmed once per row), best of
 ``--repeat`` runs. The reference in the same run is the same model with every prior
 off (``halo_shift=0, ghost_shift=0, streak_shift=0``, and no light-free or far shift):
 ``ratio`` is each row's time over it. The far shift (``far_shift``) costs a distance
@@ -31,9 +31,9 @@ import time
 import numpy as np
 from _common import REAL, random_events, report
 
-from edeflare.deflare import create_method
 from edeflare.events import EVENT_DTYPE, merge_events
 from edeflare.io import read_events
+from edeflare.methods import create_method
 
 OFF = {"halo_shift": 0.0, "ghost_shift": 0.0, "streak_shift": 0.0}
 SHIFTS_OFF = {"light_free_shift": 0.0, "far_shift": 0.0}

@@ -2,7 +2,7 @@
 
 Each case writes a synthetic recording (uniform random events, a night-driving
 density: 0.1, 1 or 3 M events/s over 1 s) as DSEC HDF5, then times
-:func:`edeflare.deflare.deflare_file` (what ``edeflare deflare`` runs)
+:func:`edeflare.methods.deflare_file` (what ``edeflare deflare`` runs)
 in a fresh subprocess (model loading included), and reports
 
 - the real-time factor (``rtf``: the time to read, de-flare and write over the
@@ -49,7 +49,7 @@ _CHILD = (
     + r"""
 import json, sys, time
 t0 = time.perf_counter()
-from edeflare.deflare import create_method, deflare_file
+from edeflare.methods import create_method, deflare_file
 src, dst, method, params = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4])
 m = create_method(method, **params)
 stats = deflare_file(src, dst, m, progress=False)

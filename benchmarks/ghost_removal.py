@@ -33,10 +33,10 @@ from _common import report
 
 from edeflare.data.generate import generate_dataset
 from edeflare.data.recipe import RECIPES
-from edeflare.deflare import create_method
 from edeflare.events import event_keys
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
+from edeflare.methods import create_method
 from edeflare.sim.flare import GhostSpec
 from edeflare.sim.sensing import in_ghosts, source_track
 

@@ -174,7 +174,10 @@ def sequences(tmp: Path) -> dict[str, dict[str, str]]:
 
 def deflare_outputs(tmp: Path) -> dict[str, str]:
     """Digests of every method's output on crops of the real recordings."""
-    from edeflare.deflare import deflare, deflare_file, list_methods
+    try:
+        from edeflare.methods import deflare, deflare_file, list_methods
+    except ImportError:  # before the methods package
+        from edeflare.deflare import deflare, deflare_file, list_methods
     from edeflare.events import slice_time
     from edeflare.io import read_events, write_events
 

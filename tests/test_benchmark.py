@@ -56,8 +56,8 @@ def test_raw_row_is_the_mean_over_sequences_of_segment_means(split):
 def test_streamed_benchmark_equals_deflaring_whole_sequences_in_memory(split, monkeypatch):
     """The benchmark streams windows; EFR (outputs stamped in the past) and PFD
     score exactly as de-flaring each whole input in memory does."""
-    from edeflare.deflare import create_method
     from edeflare.io.dsec import DsecReader
+    from edeflare.methods import create_method
 
     largest = []
     read = DsecReader.read

@@ -1,4 +1,4 @@
-"""Tests of edeflare.deflare: the method registry, the method contract, streaming files, the CLI."""
+"""Tests of edeflare.methods: the method registry, the method contract, streaming files, the CLI."""
 
 from __future__ import annotations
 
@@ -14,20 +14,20 @@ from conftest import random_events, same_events
 from edeflare.baselines.efr import efr, efr_bias
 from edeflare.baselines.pfd import pfd
 from edeflare.cli import main
-from edeflare.deflare import (
+from edeflare.errors import EdeflareError, ParameterError
+from edeflare.events import EVENT_DTYPE, make_events
+from edeflare.io import read_events, write_events
+from edeflare.methods import (
     DeflareStats,
     Method,
-    RawMethod,
-    _WindowStreamer,
+    WindowStreamer,
     create_method,
     deflare_file,
     list_methods,
     method_parameters,
     register_method,
 )
-from edeflare.errors import EdeflareError, ParameterError
-from edeflare.events import EVENT_DTYPE, make_events
-from edeflare.io import read_events, write_events
+from edeflare.methods.classical import RawMethod
 from edeflare.voxel import decode, encode
 
 SIZE = (32, 24)
@@ -92,7 +92,7 @@ def test_registering_twice_is_an_error_and_factories_must_make_methods():
         with pytest.raises(ParameterError, match="'test-twice' is already registered"):
             register_method("test-twice", make)
     finally:
-        from edeflare.deflare import _unregister
+        from edeflare.methods.base import _unregister
 
         _unregister("test-twice")
     register_method("test-bad", lambda: "not a method")
@@ -225,14 +225,14 @@ def test_streaming_a_file_equals_one_pass(tmp_path, stream, name, window_us):
 
 def test_deflare_file_reports_its_speed_and_latency(tmp_path, stream, monkeypatch):
     write_events(tmp_path / "in.h5", stream, SIZE)
-    real_process = _WindowStreamer.process
+    real_process = WindowStreamer.process
     slow_us = 30_000
 
     def slow_process(self, events, until_us):  # every window takes at least 30 ms
         time.sleep(slow_us * 1e-6)
         return real_process(self, events, until_us)
 
-    monkeypatch.setattr(_WindowStreamer, "process", slow_process)
+    monkeypatch.setattr(WindowStreamer, "process", slow_process)
     stats = deflare_file(tmp_path / "in.h5", tmp_path / "out.h5", "voxel", 20_000, progress=False)
     assert stats.span_us == int(stream["t"][-1] - stream["t"][0])
     p50, p95, worst = stats.latency_ms
@@ -244,7 +244,7 @@ def test_deflare_file_reports_its_speed_and_latency(tmp_path, stream, monkeypatc
 
 def test_streaming_efr_over_a_long_file_releases_outputs_as_it_goes(tmp_path, rng, monkeypatch):
     """Many windows and small batches: the reorder buffer releases early, still exact."""
-    monkeypatch.setattr(sys.modules["edeflare.deflare"], "_REORDER_BATCH", 1000)
+    monkeypatch.setattr(sys.modules["edeflare.methods.streaming"], "_REORDER_BATCH", 1000)
     events = random_events(rng, 100_000, (16, 16), span_us=20_000_000)
     src = tmp_path / "long.npz"
     write_events(src, events, (16, 16))
@@ -259,7 +259,7 @@ def test_efr_outputs_lagging_more_than_max_lag_are_dropped_with_a_warning(
 ):
     # Pixel (0, 0) goes silent for 3 s, then fires: its queues catch up, stamping outputs
     # back in the silence; meanwhile the other pixels keep the output flowing.
-    monkeypatch.setattr(sys.modules["edeflare.deflare"], "_REORDER_BATCH", 1000)
+    monkeypatch.setattr(sys.modules["edeflare.methods.streaming"], "_REORDER_BATCH", 1000)
     busy = random_events(rng, 100_000, (8, 8), span_us=4_000_000)
     busy = busy[(busy["x"] != 0) | (busy["y"] != 0)]
     lonely = make_events([0, 30_000, 42_000, 3_100_000], [0] * 4, [0] * 4, [1, 1, 1, 0])

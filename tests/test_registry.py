@@ -13,9 +13,9 @@ from edeflare.baselines.pfd import PFDFilter, PFDParams
 from edeflare.cli import build_parser
 from edeflare.data.kinds import DATASET_KINDS
 from edeflare.data.recipe import RECIPES
-from edeflare.deflare import METHODS, method_parameters
 from edeflare.errors import ParameterError
 from edeflare.eval.ablate import ABLATIONS
+from edeflare.methods import METHODS, method_parameters
 from edeflare.models import MODELS
 from edeflare.train import TRAIN_PRESETS
 

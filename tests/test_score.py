@@ -308,23 +308,23 @@ def test_score_recording_runs_methods_and_reads_predictions(recording, tmp_path)
     assert json.loads(json.dumps(report.to_dict()))["methods"][2]["method"] == "nolight"
 
 
-class _DropPhase(edeflare.deflare.Streamer):
+class _DropPhase(edeflare.methods.Streamer):
     """Drops the events 300-900 us into each aligned 2 ms window: a windowed method."""
 
     def process(self, events, until_us):
         return events[~((events["t"] % 2000 >= 300) & (events["t"] % 2000 < 900))]
 
 
-class _DropPhaseMethod(edeflare.deflare.Method):
+class _DropPhaseMethod(edeflare.methods.Method):
     def streamer(self, sensor_size, *, rng=None, prepared=None):
         return _DropPhase()
 
 
 @pytest.fixture
 def drop_phase():
-    edeflare.deflare.register_method("test-drop-phase", lambda: _DropPhaseMethod())
+    edeflare.methods.register_method("test-drop-phase", lambda: _DropPhaseMethod())
     yield "test-drop-phase"
-    edeflare.deflare._unregister("test-drop-phase")
+    edeflare.methods.base._unregister("test-drop-phase")
 
 
 def test_score_recording_averages_window_phases(recording, drop_phase):

@@ -6,8 +6,7 @@ does): ``import edeflare`` imports nothing heavy and changes no setting; the
 first use of a name imports its module.
 
 - read and write: :func:`read_events`, :func:`write_events`, :func:`open_events`, ...
-- de-flare: :func:`deflare` (also the module ``edeflare.deflare``, callable),
-  :func:`deflare_file`, :func:`create_method`, :func:`list_methods`;
+- de-flare: :func:`deflare`, :func:`deflare_file`, :func:`create_method`, :func:`list_methods`;
 - evaluate: :func:`evaluate_events` (the paper's metrics over aligned segments);
 - simulate: :func:`simulate_pair` (one input / ground-truth pair of a flare script);
 - models: :func:`create_model`, :func:`list_models` (E-DeflareNet presets; needs torch);
@@ -33,9 +32,10 @@ from ._version import __version__
 
 # name -> module (relative to this package) that defines it
 _LAZY: dict[str, str] = {
-    "create_method": "deflare",
-    "deflare_file": "deflare",
-    "list_methods": "deflare",
+    "create_method": "methods",
+    "deflare": "methods",
+    "deflare_file": "methods",
+    "list_methods": "methods",
     "EdeflareError": "errors",
     "EventFileError": "errors",
     "EventsError": "errors",
@@ -104,8 +104,6 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    if name == "deflare":  # the module, callable as the function (see edeflare.deflare)
-        return importlib.import_module(f"{__name__}.deflare")
     if name in _LAZY:
         value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
         globals()[name] = value
@@ -118,8 +116,6 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
-    from . import deflare
-    from .deflare import create_method, deflare_file, list_methods
     from .errors import (
         EdeflareError,
         EventFileError,
@@ -140,6 +136,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
         sort_events,
     )
     from .io import iter_windows, open_events, read_events, write_event_chunks, write_events
+    from .methods import create_method, deflare, deflare_file, list_methods
     from .models import create_model, list_models
     from .recon.infer import reconstruct_events, reconstruct_file
     from .sim.pair import simulate_pair

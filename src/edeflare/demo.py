@@ -42,7 +42,7 @@ def _demo_methods() -> dict[str, Any]:
     Without the bundled weights the demo fails loudly (an installation
     problem), rather than showing a table without its main row.
     """
-    from .deflare import create_method
+    from .methods import create_method
     from .models.infer import bundled_weights
 
     methods = {name: create_method(name) for name in ("raw", "voxel", "efr", "pfd-a", "pfd-b")}

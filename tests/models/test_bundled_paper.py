@@ -6,7 +6,7 @@ import numpy as np
 import torch
 
 from conftest import random_events
-from edeflare.deflare import create_method
+from edeflare.methods import create_method
 from edeflare.models.infer import bundled_weights
 from edeflare.models.weights import load_model, read_card, read_tensors
 

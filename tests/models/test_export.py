@@ -10,9 +10,9 @@ import torch
 
 from conftest import random_events, real_data_dir, same_events
 from edeflare.cli import main
-from edeflare.deflare import deflare_file
 from edeflare.errors import EdeflareError
 from edeflare.io import open_events, read_events, write_events
+from edeflare.methods import deflare_file
 from edeflare.models import create_model
 from edeflare.models.export import OnnxNetwork, export_onnx, onnx_parity
 from edeflare.models.infer import ModelDeflarer, bundled_weights
@@ -96,9 +96,10 @@ def test_exported_file_refuses_another_sensor_size(mask_weights, tmp_path):
     export_onnx(mask_weights, tmp_path / "m.onnx", (64, 48))
     deflarer = ModelDeflarer(tmp_path / "m.onnx")
     with pytest.raises(EdeflareError, match=r"m\.onnx: exported for a 64x48 sensor.*80x48"):
-        deflarer(random_events(np.random.default_rng(0), 10, (80, 48), span_us=20_000), (80, 48), 0)
+        deflarer(random_events(np.random.default_rng(0), 10, (80, 48), span_us=20_000), (80, 48))
     with pytest.raises(EdeflareError, match=r"outside \[0, 20000\)"):
-        deflarer(random_events(np.random.default_rng(0), 10, (64, 48)), (64, 48), 0)
+        ev = random_events(np.random.default_rng(0), 10, (64, 48))
+        list(deflarer.windows([(0, ev)], (64, 48)))
 
 
 def test_foreign_and_corrupt_onnx_files_are_refused(mask_weights, tmp_path):

@@ -77,7 +77,8 @@ def test_keep_threshold_moves_the_decision_and_lower_keeps_a_superset(tmp_path):
     kept = {}
     for threshold in (None, 0.1, 0.3, 0.6):
         d = ModelDeflarer(path, keep_threshold=threshold)
-        kept[threshold] = {tuple(e) for e in d(events, (64, 48), 0).tolist()}
+        ((_, out),) = d.windows([(0, events)], (64, 48))
+        kept[threshold] = {tuple(e) for e in out.tolist()}
     assert kept[None] == kept[0.3]  # the card's threshold is the default
     assert kept[0.6] < kept[0.3] < kept[0.1]  # strict supersets as the threshold falls
 

@@ -7,9 +7,9 @@ import pytest
 from scipy import ndimage
 
 from conftest import random_events
-from edeflare.deflare import create_method
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
+from edeflare.methods import create_method
 from edeflare.models import create_model
 from edeflare.models.flaremask import event_support
 from edeflare.models.ghosts import ghost_cells, in_ghost_prior, light_cells

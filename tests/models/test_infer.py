@@ -7,10 +7,10 @@ import pytest
 import torch
 
 from conftest import random_events, same_events
-from edeflare.deflare import create_method, deflare_file
 from edeflare.errors import EdeflareError
 from edeflare.events import iter_time_windows, make_events
 from edeflare.io import read_events, write_events
+from edeflare.methods import create_method, deflare_file
 from edeflare.models import create_model
 from edeflare.models.infer import ModelDeflarer, _full_precision, bundled_weights
 from edeflare.models.weights import ModelCard, WeightsError, save_model
@@ -36,7 +36,7 @@ def test_identity_model_with_keep_decoder_returns_the_input_exactly(identity_wei
 
 def test_paper_decoder_keeps_cell_counts_not_times(identity_weights, rng):
     ev = random_events(rng, 2000, SIZE, t0=0, span_us=20_000)
-    out = ModelDeflarer(identity_weights, decoder="paper")(ev, SIZE, 0)
+    ((_, out),) = ModelDeflarer(identity_weights, decoder="paper").windows([(0, ev)], SIZE)
     np.testing.assert_array_equal(
         encode(out, SIZE, 0, 20_000), np.rint(encode(ev, SIZE, 0, 20_000))
     )
@@ -104,8 +104,8 @@ def test_bad_configuration(identity_weights, tmp_path):
 
 
 def test_model_method_streams_files_like_one_pass(identity_weights, tmp_path, rng):
-    from edeflare.deflare import create_method, deflare_file
     from edeflare.io import read_events, write_events
+    from edeflare.methods import create_method, deflare_file
 
     ev = random_events(rng, 4000, SIZE, t0=1_000_000, span_us=150_000)
     write_events(tmp_path / "in.h5", ev, SIZE)

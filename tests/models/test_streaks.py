@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import random_events
-from edeflare.deflare import create_method
 from edeflare.events import make_events, merge_events
+from edeflare.methods import create_method
 from edeflare.models.ghosts import light_cells
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.streaks import MIN_PIXEL_EVENTS, _runs, in_streak_prior

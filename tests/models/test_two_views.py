@@ -7,12 +7,13 @@ import pytest
 import torch
 
 from edeflare import deflare, read_events, write_events
-from edeflare.deflare import _TwoViewStreamer, create_method, deflare_file
 from edeflare.errors import ParameterError
 from edeflare.events import EVENT_DTYPE, make_events, select_events
+from edeflare.methods import create_method, deflare_file
 from edeflare.models import create_model
 from edeflare.models.flaremask import keep_logit_threshold
 from edeflare.models.infer import ModelDeflarer
+from edeflare.models.two_view import TwoViewStreamer
 from edeflare.models.weights import ModelCard, save_model
 
 SIZE = (40, 30)
@@ -36,7 +37,7 @@ def test_two_views_keep_where_the_mean_logit_passes_by_hand():
     t = np.arange(0, 40_000, 1_000)
     ev = make_events(t, t % 7, t % 5, np.ones(t.size, int))
     calls = []
-    streamer = _TwoViewStreamer(20_000, 5_000, _fake_logits(calls), cut=0.0, batch_windows=4)
+    streamer = TwoViewStreamer(20_000, 5_000, _fake_logits(calls), cut=0.0, batch_windows=4)
     out = np.concatenate([streamer.process(ev, 40_000), streamer.flush()])
     # [0, 15): views +2 and 0 (window from -5 ms): kept; [15, 20) and [20, 35): +2 and -4:
     # dropped; [35, 40): +2 and 0 (window from 35 ms): kept
@@ -48,9 +49,9 @@ def test_two_views_keep_where_the_mean_logit_passes_by_hand():
 def test_two_views_emit_events_once_both_windows_are_done_and_chunks_change_nothing():
     t = np.arange(0, 40_000, 1_000)
     ev = make_events(t, t % 7, t % 5, np.ones(t.size, int))
-    one = _TwoViewStreamer(20_000, 5_000, _fake_logits([]), cut=0.0, batch_windows=1)
+    one = TwoViewStreamer(20_000, 5_000, _fake_logits([]), cut=0.0, batch_windows=1)
     whole = np.concatenate([one.process(ev, 40_000), one.flush()])
-    s = _TwoViewStreamer(20_000, 5_000, _fake_logits([]), cut=0.0, batch_windows=1)
+    s = TwoViewStreamer(20_000, 5_000, _fake_logits([]), cut=0.0, batch_windows=1)
     first = s.process(ev[ev["t"] < 16_000], 16_000)
     # at 16 ms the aligned window [0, 20) is open: nothing can be decided yet
     assert first.size == 0
@@ -105,6 +106,17 @@ def test_the_model_method_averages_the_two_views_logits(pixel_weights, stream):
     assert np.array_equal(
         deflare(stream, SIZE, "model", weights=pixel_weights, phase_shift_us=0), one
     )
+
+
+def test_the_model_deflarer_gives_the_same_result_as_deflare(pixel_weights, stream):
+    # the two-view logic is the model's: its deflarer and the method agree, both views
+    d = ModelDeflarer(pixel_weights)
+    assert np.array_equal(d(stream, SIZE), deflare(stream, SIZE, "model", weights=pixel_weights))
+    assert np.array_equal(
+        d(stream, SIZE, phase_shift_us=0),
+        deflare(stream, SIZE, "model", weights=pixel_weights, phase_shift_us=0),
+    )
+    assert not np.array_equal(d(stream, SIZE), d(stream, SIZE, phase_shift_us=0))
 
 
 def test_streaming_a_file_with_two_views_equals_one_pass(pixel_weights, stream, tmp_path):

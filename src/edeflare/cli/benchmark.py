@@ -131,8 +131,8 @@ def run(args: argparse.Namespace) -> int:
         table.save(report, markdown=markdown, details={"benchmark": result.to_dict()})
         print(f"wrote {report}, {report.with_suffix('.csv')} and {report.with_suffix('.json')}")
     if collector is not None:
-        from ..deflare import create_method
         from ..eval.report import write_report
+        from ..methods import create_method
 
         real_methods = {k: create_method(v, **params.get(k, {})) for k, v in rows.items()}
         page = write_report(

@@ -25,7 +25,7 @@ HELP = (
 
 def _param_groups() -> list[tuple[type, tuple[str, ...]]]:
     """Each declared parameter dataclass and the methods using it, in registration order."""
-    from ..deflare import METHODS
+    from ..methods import METHODS
 
     groups: dict[type, list[str]] = {}
     for name in METHODS:
@@ -37,7 +37,7 @@ def _param_groups() -> list[tuple[type, tuple[str, ...]]]:
 
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     """Register the command."""
-    from ..deflare import list_methods
+    from ..methods import list_methods
 
     p = sub.add_parser("deflare", help=HELP, description=HELP, **kwargs)
     p.add_argument("input", type=Path)
@@ -96,7 +96,7 @@ def _peak_memory_mb() -> float:
 
 def run(args: argparse.Namespace) -> int:
     """Build the method, stream the input through it, write the output atomically."""
-    from ..deflare import deflare_file
+    from ..methods import deflare_file
 
     window_us = round(args.window_ms * 1000)
     if window_us <= 0:

@@ -28,7 +28,7 @@ def _named_path(text: str) -> tuple[str, Path]:
 
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     """Register the command."""
-    from ..deflare import list_methods
+    from ..methods import list_methods
 
     p = sub.add_parser("score", help=HELP, description=DESCRIPTION, **kwargs)
     p.add_argument("recording", type=Path, help="the input recording (any readable format)")

@@ -28,11 +28,11 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from ..deflare import Method, StreamRun, create_method
 from ..errors import ParameterError
 from ..events import SensorSize, concat_events, empty_events, iter_chunk_windows
 from ..io import open_events
 from ..io.sequence import list_sequences, read_frames, sequence_span
+from ..methods import Method, StreamRun, create_method
 from ..recon.clips import BURN_IN, centre_image
 from .downstream import CleanFrame, DownstreamScores
 from .evaluate import Evaluation, Summary, combine_summaries, summarize
@@ -147,7 +147,7 @@ def benchmark(
     split : path-like or sequence of path-like
         A folder of sequence files, or the files.
     methods : mapping
-        Row name -> registered method name or :class:`~edeflare.deflare.Method`.
+        Row name -> registered method name or :class:`~edeflare.methods.Method`.
         Call the unprocessed input ``raw`` to get the unranked Raw Input row.
     params : mapping, optional
         Row name -> method parameters (for names).

@@ -180,7 +180,7 @@ def reconstruct_recording(
 
     The first ``max_span_us`` of the recording (whole if shorter; a long file is
     not read past it) go through each method in memory (``methods``: column
-    label to a method name or :class:`~edeflare.deflare.Method`), and every
+    label to a method name or :class:`~edeflare.methods.Method`), and every
     stream through the bundled reconstructor over aligned ``window_us``
     windows from the first event. Real recordings have no flare-free image: the
     figure is to look at, as the paper's real-data reconstructions are.
@@ -197,9 +197,9 @@ def reconstruct_recording(
     >>> r.columns, r.events, r.span_us
     (['input events', 'input', 'raw'], {'input': 3, 'raw': 3}, (0, 40000))
     """
-    from ..deflare import Method, create_method
     from ..events import window_start_for
     from ..io import open_events
+    from ..methods import Method, create_method
     from ..recon.infer import reconstruct_events
     from ..viz import event_frame, grid
 

@@ -43,9 +43,9 @@ from PIL import Image
 from tqdm import tqdm
 
 from .._version import __version__
-from ..deflare import Method
 from ..errors import EventFileError
 from ..io._atomic import atomic_path
+from ..methods import Method
 from ..viz import grid, save_animation, save_image
 from .benchmark import BenchmarkResult, benchmark
 from .downstream import RealReconstruction, reconstruct_recording

@@ -912,8 +912,8 @@ def score_recording(
     >>> report.rows[0].flare_removed, report.rows[0].light_kept, report.rows[0].combined
     (0.0, 1.0, 0.0)
     """
-    from ..deflare import create_method
     from ..io import read_events
+    from ..methods import create_method
 
     events, size = read_events(recording)
     if events.size == 0:

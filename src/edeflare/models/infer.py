@@ -32,7 +32,16 @@ import numpy as np
 import torch
 
 from ..errors import EdeflareError
-from ..events import EVENT_DTYPE, SensorSize, check_events, select_events
+from ..events import (
+    EVENT_DTYPE,
+    SensorSize,
+    check_events,
+    check_sensor_size,
+    concat_events,
+    select_events,
+)
+from ..methods.base import Streamer
+from ..methods.windows import WindowStreamer
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
@@ -48,6 +57,7 @@ from .ghosts import (
 from .halos import check_halo_shift, far_from_lights, in_halo_prior, window_lights
 from .scatter import light_free_shifts
 from .streaks import check_streak_shift, in_streak_prior
+from .two_view import TwoViewStreamer, check_phase_shift
 from .weights import ModelCard, load_model
 
 __all__ = [
@@ -290,6 +300,7 @@ class ModelDeflarer:
         if runtime not in RUNTIMES:
             raise EdeflareError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
         is_onnx = Path(weights).suffix.lower() == ".onnx"
+        self.weights = weights
         if runtime == "torch" and is_onnx:
             raise EdeflareError(f"{weights}: an ONNX file runs with runtime 'onnx', not 'torch'")
         self.device = _device(device)
@@ -591,6 +602,40 @@ class ModelDeflarer:
             pass
         self._warm.add(size)
 
-    def __call__(self, events: np.ndarray, sensor_size: SensorSize, start_us: int) -> np.ndarray:
-        """De-flare one window starting at ``start_us``."""
-        return next(iter(self.windows([(start_us, events)], sensor_size)))[1]
+    def streamer(self, sensor_size: SensorSize, *, phase_shift_us: int | None = None) -> Streamer:
+        """This model's state over one stream (see :class:`edeflare.methods.Streamer`).
+
+        A mask model judges each event in two windowings (aligned, and delayed
+        by ``phase_shift_us``; default a quarter of its window) and keeps it
+        where the mean of its two keep logits passes
+        (:class:`~edeflare.models.two_view.TwoViewStreamer`); ``0`` keeps one
+        windowing. Voxel-to-voxel models use one windowing.
+        """
+        shift = check_phase_shift(phase_shift_us, self.card, self.weights)
+        size = check_sensor_size(sensor_size)
+        self.warm_up(size)
+        if shift:
+            return TwoViewStreamer(
+                self.window_us,
+                shift,
+                lambda batch: self.window_logits(batch, size),
+                keep_logit_threshold(self.keep_threshold),
+                self.batch_windows,
+            )
+
+        def transform(
+            batch: list[tuple[int, np.ndarray]], span: tuple[int, int | None]
+        ) -> list[np.ndarray]:
+            return [ev for _, ev in self.windows(batch, size, span_us=span)]
+
+        return WindowStreamer(self.window_us, transform)
+
+    def __call__(
+        self, events: np.ndarray, sensor_size: SensorSize, *, phase_shift_us: int | None = None
+    ) -> np.ndarray:
+        """De-flare a whole stream in memory: the same result as
+        ``edeflare.deflare(events, sensor_size, "model", weights=...)``."""
+        check_events(events, sensor_size)
+        streamer = self.streamer(sensor_size, phase_shift_us=phase_shift_us)
+        until = int(events["t"][-1]) + 1 if events.size else 0
+        return concat_events([streamer.process(events, until), streamer.flush()])
