@@ -1,7 +1,7 @@
 """What the default model's priors cost in time, on recordings with bright lights.
 
-The halo prior (``edeflare.models.halos``), the ghost prior (``edeflare.models.ghosts``)
-and the diffraction-spike prior (``edeflare.models.streaks``), all on in the bundled
+The halo prior (``edeflare.rules.halo``), the ghost prior (``edeflare.rules.ghost``)
+and the diffraction-spike prior (``edeflare.rules.streak``), all on in the bundled
 default, are per-window work after the network: a light test on 8x8 cells, around each
 light the distances of the events near it, the ghosts' cells with a neighbourhood count
 of the events in them, and around each light the events binned by angle and ring. A

@@ -52,11 +52,11 @@ def test_info_prints_a_weights_files_card(tmp_path, capsys):
     assert main(["info", "night"]) == 0  # a bundled model, by name
     out = capsys.readouterr().out
     assert "preset      mask.pixel (8 bins, 20 ms windows)" in out
-    priors = (
-        "halo_shift 3, ghost_shift 3, streak_shift 8, light_free_shift 4 (support 2, "
-        "crowding 3, scatter_shift 4), far_shift 4"
-    )
-    assert f"priors      {priors}" in out
+    assert "rule halo   halo_shift 3\n" in out and "rule streak streak_shift 8\n" in out
+    assert (
+        "rule light-free light_free_shift 4, light_free_support 2, light_free_crowding 3, "
+        "scatter_shift 4\n"
+    ) in out
     assert "keep        probability > 0.4" in out
     assert "score_davis_lamps_combined 0.872" in out
     path = tmp_path / "m.safetensors"

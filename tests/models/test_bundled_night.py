@@ -20,16 +20,17 @@ from edeflare.models.weights import read_card
 def test_the_night_card_says_what_it_is_and_night_is_the_default():
     card = read_card(bundled_weights("night"))
     assert DEFAULT_MODEL == "night" and bundled_weights() == bundled_weights("night")
-    # the threshold and the priors' shifts: experiments/streaks/README.md
     assert card.preset == "mask.pixel" and card.keep_threshold == 0.4
     assert "--loss keep" in card.command and "--init night-7e5b73e.safetensors" in card.command
     assert "--polarity-flip" in card.command and "--polarity-flip" in card.data
     assert "--recipe eflare-night" in card.data and "gen_day.py" in card.data
     assert card.metrics["score_davis_lamps_combined"] == 0.872
-    # the priors (halos.py, ghosts.py, streaks.py; no light or far from one: infer.py)
-    assert (card.halo_shift, card.ghost_shift, card.streak_shift) == (3.0, 3.0, 8.0)
-    assert (card.light_free_shift, card.light_free_support, card.far_shift) == (4.0, 2, 4.0)
-    assert card.light_free_crowding == 3.0
+    # the rules it sets (edeflare.rules); the card written before the registry still reads
+    assert card.rule_set().changed() == {
+        "ghost_shift": 3.0, "halo_shift": 3.0, "streak_shift": 8.0, "far_shift": 4.0,
+        "light_free_shift": 4.0, "light_free_support": 2, "light_free_crowding": 3.0,
+        "scatter_shift": 4.0,
+    }  # fmt: skip
     assert read_card(bundled_weights("eflare")).preset == "unet2d.lite"  # the previous default
 
 

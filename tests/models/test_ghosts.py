@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from edeflare.events import make_events, merge_events
-from edeflare.models.ghosts import LIGHT_RATE, ghost_cells, in_ghost_prior
+from edeflare.rules.ghost import LIGHT_RATE, ghost_cells, in_ghost_prior
 
 
 def _light(x0: int, y0: int, n: int = 400, size: int = 8) -> np.ndarray:
@@ -90,7 +90,7 @@ def test_light_cells_of_another_grid_are_refused():
 
 
 def test_the_ghost_maps_are_computed_once_per_sensor_and_cannot_be_changed():
-    from edeflare.models.ghosts import GHOST_FACTORS, _ghost_maps
+    from edeflare.rules.ghost import GHOST_FACTORS, _ghost_maps
 
     first = _ghost_maps(64, 64, 8, GHOST_FACTORS)
     assert _ghost_maps(64, 64, 8, GHOST_FACTORS)[0] is first[0]

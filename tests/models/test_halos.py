@@ -12,8 +12,10 @@ from edeflare.events import make_events, merge_events
 from edeflare.methods import create_method
 from edeflare.models import create_model
 from edeflare.models.flaremask import event_support
-from edeflare.models.ghosts import ghost_cells, in_ghost_prior, light_cells
-from edeflare.models.halos import (
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.weights import ModelCard, save_model
+from edeflare.rules.ghost import ghost_cells, in_ghost_prior, light_cells
+from edeflare.rules.halo import (
     FAR_RADII,
     FAR_REACH,
     HALO_EXTENT,
@@ -26,8 +28,6 @@ from edeflare.models.halos import (
     light_pixels,
     window_lights,
 )
-from edeflare.models.infer import ModelDeflarer, bundled_weights
-from edeflare.models.weights import ModelCard, save_model
 
 SIZE = (192, 64)  # wide enough that no halo here meets HALO_MAX_REACH (38 px)
 
@@ -195,11 +195,11 @@ def test_a_prior_shift_needs_a_mask_model_and_defaults_to_the_cards(name, tmp_pa
     save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny"))
     with pytest.raises(EdeflareError, match=f"{name} needs a mask model"):
         ModelDeflarer(path, **{name: 1.0})
-    assert getattr(ModelDeflarer(path), name) == 0.0
+    assert ModelDeflarer(path).rules[name] == 0.0
     carded = tmp_path / "m.safetensors"
-    save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", **{name: 1.5}))
-    assert getattr(ModelDeflarer(carded), name) == 1.5
-    assert getattr(ModelDeflarer(carded, **{name: 0.0}), name) == 0.0
+    save_model(carded, create_model("mask.lite"), ModelCard(preset="mask.lite", rules={name: 1.5}))
+    assert ModelDeflarer(carded).rules[name] == 1.5
+    assert ModelDeflarer(carded, **{name: 0.0}).rules[name] == 0.0
 
 
 def test_the_events_band_is_the_pixel_maps_band(rng):
@@ -252,7 +252,7 @@ def test_the_band_of_a_lights_box_is_the_distance_transforms(shape):
     # 600 px long); each way, the band of scipy's exact distance transform
     from scipy import ndimage
 
-    from edeflare.models.halos import _edge_pixels, _in_band
+    from edeflare.rules.halo import _edge_pixels, _in_band
 
     yy, xx = np.mgrid[0:40, 0:640]
     r = np.hypot(yy - 20, xx - 20)
@@ -276,7 +276,7 @@ def test_the_band_of_a_lights_box_is_the_distance_transforms(shape):
 def test_a_lights_filled_holes_radius_and_edge_are_scipys(seed):
     from scipy import ndimage
 
-    from edeflare.models.halos import _edge_pixels, _fill_holes, _inscribed_radius
+    from edeflare.rules.halo import _edge_pixels, _fill_holes, _inscribed_radius
 
     mask = np.random.default_rng(seed).random((40, 56)) < 0.55
     np.testing.assert_array_equal(_fill_holes(mask), ndimage.binary_fill_holes(mask))
@@ -343,7 +343,7 @@ def test_the_light_free_shift_raises_only_the_events_with_support_in_their_5x5_s
         with pytest.raises(ParameterError, match="light_free_support"):
             ModelDeflarer(weights, light_free_support=bad)
     assert create_method("model").params["light_free_support"] is None  # the card's: 2
-    assert ModelDeflarer(weights).light_free_support == 2
+    assert ModelDeflarer(weights).rules["light_free_support"] == 2
 
 
 def test_far_from_the_lights_is_beyond_a_share_of_the_width_and_radii_from_every_light():
@@ -440,7 +440,7 @@ def test_dense_scene_and_hot_pixels_are_no_lights_and_get_the_light_free_shift(r
 def test_a_light_in_the_part_of_a_window_the_stream_covers_is_found():
     # a stream that ends 5 ms into its last window: its light fires 4 events per pixel in
     # those 5 ms (0.8 per ms; 0.2 over the whole window, under the light rate of 0.25)
-    from edeflare.models.ghosts import covered_us
+    from edeflare.rules.ghost import covered_us
 
     ev = _block(40, 20, per_pixel=4, t0=15_000)
     ev["t"] = 15_000 + (ev["t"] - 15_000) // 4  # squeezed into 15-20 ms

@@ -1,4 +1,4 @@
-"""Crowded isolated events and scattered-light fields (edeflare.models.scatter): against
+"""Crowded isolated events and scattered-light fields (edeflare.rules.light_free): against
 loops over the squares, by hand on small layouts, and in the light-free shift of the
 model."""
 
@@ -10,9 +10,9 @@ import pytest
 from edeflare.errors import ParameterError
 from edeflare.events import make_events
 from edeflare.models.flaremask import event_support
-from edeflare.models.ghosts import covered_us
 from edeflare.models.infer import ModelDeflarer, bundled_weights
-from edeflare.models.scatter import (
+from edeflare.rules.ghost import covered_us
+from edeflare.rules.light_free import (
     FIELD_MAX_RATE,
     FIELD_MIN_EVENTS,
     FIELD_MIN_SHARE,
@@ -150,7 +150,7 @@ def test_the_light_free_shift_reaches_the_isolated_events_that_do_not_crowd():
     for bad in (-1.0, float("inf"), True):
         with pytest.raises(ParameterError, match="light_free_crowding"):
             ModelDeflarer(weights, light_free_crowding=bad)
-    assert ModelDeflarer(weights).light_free_crowding == 3.0
+    assert ModelDeflarer(weights).rules["light_free_crowding"] == 3.0
 
 
 def _field_by_loops(events, size, crowded, cell, reach, span_us):
@@ -291,4 +291,4 @@ def test_the_model_adds_the_light_free_shifts_in_a_window_without_a_light():
     for bad in (-1.0, float("nan"), "4"):
         with pytest.raises(ParameterError, match="scatter_shift"):
             ModelDeflarer(weights, scatter_shift=bad)
-    assert ModelDeflarer(weights).scatter_shift == 4.0
+    assert ModelDeflarer(weights).rules["scatter_shift"] == 4.0

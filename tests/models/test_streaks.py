@@ -8,9 +8,9 @@ import pytest
 from conftest import random_events
 from edeflare.events import make_events, merge_events
 from edeflare.methods import create_method
-from edeflare.models.ghosts import light_cells
 from edeflare.models.infer import ModelDeflarer, bundled_weights
-from edeflare.models.streaks import MIN_PIXEL_EVENTS, _runs, in_streak_prior
+from edeflare.rules.ghost import light_cells
+from edeflare.rules.streak import MIN_PIXEL_EVENTS, _runs, in_streak_prior
 
 SIZE = (200, 120)
 CX, CY = 100, 60  # the light's centre: a 10x10 block, radius 5
@@ -51,7 +51,7 @@ def test_runs_bridge_short_gaps_and_stop_at_long_ones():
 
 
 def test_flank_medians_are_the_medians_of_the_angles_on_each_side():
-    from edeflare.models.streaks import _flank_medians
+    from edeflare.rules.streak import _flank_medians
 
     run = np.arange(20) ** 2 % 7  # 0 1 4 2 2 4 1 0 1 4 ...
     left, right = _flank_medians(run, 4, 2)  # the angles 2-4 bins away on each side
@@ -161,7 +161,7 @@ def test_a_round_light_on_a_spike_of_another_keeps_its_events():
 
 def test_the_compiled_angle_runs_are_the_polar_bins_filled_and_followed(rng):
     # _angle_runs bins, fills and follows in one loop; the same from the numpy steps
-    from edeflare.models.streaks import (
+    from edeflare.rules.streak import (
         ANGLE_BINS,
         FILL_SHARE,
         MAX_GAP_BINS,
@@ -249,7 +249,7 @@ def test_arms_inside_a_dense_scene_are_no_spikes():
 
 
 def test_arm_angles_need_partners_and_dark_flanks():
-    from edeflare.models.streaks import ANGLE_BINS, _arms
+    from edeflare.rules.streak import ANGLE_BINS, _arms
 
     run = np.zeros(ANGLE_BINS, dtype=np.int64)
     arms = [0, 40, 80, 120, 160, 200]  # six arms 60 degrees apart, 5 bins wide
@@ -271,7 +271,7 @@ def test_arm_angles_need_partners_and_dark_flanks():
 
 
 def test_a_lights_core_is_its_inscribed_discs_centre_not_its_mean():
-    from edeflare.models.streaks import _centre, _core
+    from edeflare.rules.streak import _centre, _core
 
     yy, xx = np.mgrid[:60, :120]
     own = np.hypot(yy - 30, xx - 30) <= 10  # a disc at (30, 30)

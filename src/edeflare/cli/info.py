@@ -70,24 +70,19 @@ def run(args: argparse.Namespace) -> int:
 def _card(path: Path) -> int:
     """Print the model card of a weights file (no tensors loaded)."""
     from ..models.weights import read_card
+    from ..rules import RULES
 
     card = read_card(path)
     print(f"file        {path}")
     print(f"preset      {card.preset} ({card.bins} bins, {card.window_us / 1000:g} ms windows)")
     if card.preset.startswith("mask."):
         print(f"keep        probability > {card.keep_threshold:g}")
-        light_free = f"light_free_shift {card.light_free_shift:g}"
-        if card.light_free_support:
-            gate = f"support {card.light_free_support}"
-            if card.light_free_crowding:
-                gate += f", crowding {card.light_free_crowding:g}"
-                if card.scatter_shift:
-                    gate += f", scatter_shift {card.scatter_shift:g}"
-            light_free += f" ({gate})"
-        print(
-            f"priors      halo_shift {card.halo_shift:g}, ghost_shift {card.ghost_shift:g}, "
-            f"streak_shift {card.streak_shift:g}, {light_free}, far_shift {card.far_shift:g}"
-        )
+        rules = card.rule_set()
+        for rule in RULES.values():
+            params = rules.params[rule.name]
+            if rule.active(params):
+                knobs = ", ".join(f"{k} {v:g}" for k, v in vars(params).items() if v)
+                print(f"{'rule ' + rule.name:<11} {knobs}")
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")
     for name in ("data", "command", "notes"):

@@ -17,8 +17,8 @@ __all__ = ["ModelMethod", "ModelParams"]
 
 
 @dataclasses.dataclass(frozen=True)
-class ModelParams:
-    """The ``model`` method's parameters (see :class:`ModelMethod`)."""
+class _ModelOptions:
+    """The ``model`` method's own parameters (the rules' knobs join them in ModelParams)."""
 
     cli_title: ClassVar[str] = "model (E-DeflareNet)"
 
@@ -59,105 +59,6 @@ class ModelParams:
             default_text="the model card's",
         ),
     )
-    ghost_shift: float | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--ghost-shift",
-            "mask models: lower the keep logit by this much for the sparse events where a "
-            "reflective ghost of the window's lights can be (the lights reflected through the "
-            "sensor's centre; 0: off)",
-            metavar="LOGIT",
-            type=float,
-            default_text="the model card's",
-        ),
-    )
-    halo_shift: float | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--halo-shift",
-            "mask models: lower the keep logit by this much in the halo of the window's lights "
-            "(from just outside each light to six of its radii, at most a fifth of the sensor's "
-            "width; 0: off)",
-            metavar="LOGIT",
-            type=float,
-            default_text="the model card's",
-        ),
-    )
-    streak_shift: float | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--streak-shift",
-            "mask models: lower the keep logit by this much on the diffraction spikes of the "
-            "window's lights (saturated radial runs in opposite pairs; 0: off)",
-            metavar="LOGIT",
-            type=float,
-            default_text="the model card's",
-        ),
-    )
-    light_free_shift: float | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--light-free-shift",
-            "mask models: raise the keep logit by this much in the windows without a light "
-            "(flare needs a bright source; 0: off)",
-            metavar="LOGIT",
-            type=float,
-            default_text="the model card's",
-        ),
-    )
-    light_free_support: int | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--light-free-support",
-            "mask models: the light-free shift raises only the events with at least this many "
-            "other events of their window in their 5x5 square (a night lamp too slow for the "
-            "light test scatters isolated events; 0: every event)",
-            metavar="N",
-            type=int,
-            default_text="the model card's",
-        ),
-    )
-    light_free_crowding: float | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--light-free-crowding",
-            "mask models: with a light-free support, the isolated events still get the "
-            "light-free shift unless they crowd, more of them within a sixth of the "
-            "sensor's smaller side than the window's median density allows by this many "
-            "Poisson standard deviations (scattered light lies around its source, background "
-            "activity evenly; 0: no isolated event gets it)",
-            metavar="Z",
-            type=float,
-            default_text="the model card's",
-        ),
-    )
-    scatter_shift: float | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--scatter-shift",
-            "mask models, with a light-free support and crowding: in a window without a "
-            "light, where crowded isolated events are a share of all (the scattered light "
-            "of a lamp too slow for the light test), lower them by this much, raise the "
-            "dense events (the lamp) by this much more, and give the sparser ones (its "
-            "bloom) no light-free shift (0: off)",
-            metavar="LOGIT",
-            type=float,
-            default_text="the model card's",
-        ),
-    )
-    far_shift: float | None = dataclasses.field(
-        default=None,
-        metadata=cli_option(
-            "--far-shift",
-            "mask models: raise the keep logit by this much for the events far from every "
-            "light of their window (beyond 0.3 of the sensor's width and 8 of the light's "
-            "radii, and not where the lights' ghosts can be nor on their spikes: flare lies "
-            "around its source; 0: off)",
-            metavar="LOGIT",
-            type=float,
-            default_text="the model card's",
-        ),
-    )
     runtime: str = dataclasses.field(
         default="auto",
         metadata=cli_option(
@@ -183,6 +84,24 @@ class ModelParams:
     )
 
 
+def _rule_fields() -> list[tuple[str, Any, Any]]:
+    """The rules' knobs as ``model`` parameters: None takes the model card's value."""
+    from ..rules import knob_fields
+
+    return [
+        (name, f"{f.type} | None", dataclasses.field(default=None, metadata=f.metadata))
+        for name, (_, f) in knob_fields().items()
+    ]
+
+
+ModelParams = dataclasses.make_dataclass(
+    "ModelParams", _rule_fields(), bases=(_ModelOptions,), frozen=True
+)
+ModelParams.__module__ = __name__
+ModelParams.__doc__ = """The ``model`` method's parameters (see :class:`ModelMethod`): its own and
+the rules' knobs (:mod:`edeflare.rules`), each None for the model card's value."""
+
+
 class ModelMethod(Method):
     """A trained E-DeflareNet (see :class:`~edeflare.models.infer.ModelDeflarer`).
 
@@ -195,14 +114,9 @@ class ModelMethod(Method):
 
     A mask model judges each event twice: in the aligned windows and in windows
     delayed by ``phase_shift_us`` (default: a quarter window, 5 ms), and keeps
-    it where the mean of its two keep logits passes the threshold. Where a
-    recording's windows start relative to what it shows is chance, and one
-    windowing can flatter or wrong a model: on the DAVIS346 flicker lamps the
-    default model alone removes 84 % of the flare with windows at one phase and
-    36 % a quarter window later (the lamps flicker at 100 Hz: a 10 ms shift
-    would see them at the same phase again, 5 ms at the opposite one; at 120 Hz
-    it is 0.6 of a period). Two views cost twice the network work; ``0``
-    keeps one. Voxel-to-voxel models use one windowing.
+    it where the mean of its two keep logits passes the threshold
+    (:mod:`edeflare.models.two_view`); ``0`` keeps one windowing. The rules'
+    knobs (:mod:`edeflare.rules`) default to the model card's values.
     """
 
     def __init__(
@@ -215,21 +129,12 @@ class ModelMethod(Method):
         runtime: str = "auto",
         keep_threshold: float | None = None,
         phase_shift_us: int | None = None,
-        ghost_shift: float | None = None,
-        halo_shift: float | None = None,
-        streak_shift: float | None = None,
-        light_free_shift: float | None = None,
-        light_free_support: int | None = None,
-        light_free_crowding: float | None = None,
-        scatter_shift: float | None = None,
-        far_shift: float | None = None,
+        **rules: float | int | None,
     ) -> None:
-        from ..models.ghosts import check_ghost_shift, check_logit_shift, check_support
-        from ..models.halos import check_halo_shift
         from ..models.infer import DECODERS, RUNTIMES, resolve_weights
-        from ..models.streaks import check_streak_shift
         from ..models.two_view import check_phase_shift
         from ..models.weights import read_card
+        from ..rules import RuleSet
 
         if decoder not in DECODERS:
             raise ParameterError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -237,22 +142,7 @@ class ModelMethod(Method):
             raise ParameterError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
         if keep_threshold is not None and not 0.0 < keep_threshold < 1.0:
             raise ParameterError(f"keep_threshold must be in (0, 1), got {keep_threshold!r}")
-        if ghost_shift is not None:
-            ghost_shift = check_ghost_shift(ghost_shift)
-        if halo_shift is not None:
-            halo_shift = check_halo_shift(halo_shift)
-        if streak_shift is not None:
-            streak_shift = check_streak_shift(streak_shift)
-        if light_free_shift is not None:
-            light_free_shift = check_logit_shift(light_free_shift, "light_free_shift")
-        if light_free_support is not None:
-            light_free_support = check_support(light_free_support, "light_free_support")
-        if light_free_crowding is not None:
-            light_free_crowding = check_logit_shift(light_free_crowding, "light_free_crowding")
-        if scatter_shift is not None:
-            scatter_shift = check_logit_shift(scatter_shift, "scatter_shift")
-        if far_shift is not None:
-            far_shift = check_logit_shift(far_shift, "far_shift")
+        RuleSet(rules)  # checks every knob now, naming it
         if (
             isinstance(batch_windows, bool)
             or not isinstance(batch_windows, int)
@@ -271,18 +161,12 @@ class ModelMethod(Method):
             runtime=runtime,
             keep_threshold=keep_threshold,
             phase_shift_us=phase_shift_us,
-            ghost_shift=ghost_shift,
-            halo_shift=halo_shift,
-            streak_shift=streak_shift,
-            light_free_shift=light_free_shift,
-            light_free_support=light_free_support,
-            light_free_crowding=light_free_crowding,
-            scatter_shift=scatter_shift,
-            far_shift=far_shift,
+            **rules,
         )
         # One loaded (and, with ONNX Runtime, exported and warmed) network per seed,
         # shared by every stream of this method: a benchmark opens one per sequence.
         self._deflarers: dict[int, Any] = {}
+        self._knobs = tuple(rules)
 
     def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
         from ..models.infer import ModelDeflarer
@@ -298,14 +182,7 @@ class ModelMethod(Method):
                 seed=seed,
                 runtime=p["runtime"],
                 keep_threshold=p["keep_threshold"],
-                ghost_shift=p["ghost_shift"],
-                halo_shift=p["halo_shift"],
-                streak_shift=p["streak_shift"],
-                light_free_shift=p["light_free_shift"],
-                light_free_support=p["light_free_support"],
-                light_free_crowding=p["light_free_crowding"],
-                scatter_shift=p["scatter_shift"],
-                far_shift=p["far_shift"],
+                **{k: p[k] for k in self._knobs},
             )
         deflarer = self._deflarers[seed]
         return deflarer.streamer(sensor_size, phase_shift_us=p["phase_shift_us"])

@@ -42,21 +42,12 @@ from ..events import (
 )
 from ..methods.base import Streamer
 from ..methods.windows import WindowStreamer
+from ..rules import RULES, RuleSet, WindowContext
+from ..rules.ghost import covered_us
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
-from .ghosts import (
-    check_ghost_shift,
-    check_logit_shift,
-    check_support,
-    covered_us,
-    ghost_cells,
-    in_ghost_prior,
-)
-from .halos import check_halo_shift, far_from_lights, in_halo_prior, window_lights
-from .scatter import light_free_shifts
-from .streaks import check_streak_shift, in_streak_prior
 from .two_view import TwoViewStreamer, check_phase_shift
 from .weights import ModelCard, load_model
 
@@ -207,64 +198,18 @@ class ModelDeflarer:
         Mask models: an event is kept where its keep probability exceeds this
         (default: the model card's, 1/2 unless the card says otherwise). Lower
         keeps more of the scene and of the flare.
-    ghost_shift : float, optional
-        Mask models: how much lower (in logit units) the keep logit of an event is
-        inside its window's ghost prior (:mod:`edeflare.models.ghosts`: where a
-        reflective ghost of the window's lights can be). Default: the model card's
-        (0, off, unless the card says otherwise).
-    halo_shift : float, optional
-        Mask models: how much lower (in logit units) the keep logit of an event is
-        inside its window's halo prior (:mod:`edeflare.models.halos`: from just
-        outside each light out to six of its radii, at most a fifth of the sensor's
-        width). Default: the model card's (0, off, unless the card says otherwise).
-    streak_shift : float, optional
-        Mask models: how much lower (in logit units) the keep logit of an event is
-        on a diffraction spike of its window's lights (:mod:`edeflare.models.streaks`:
-        saturated radial runs in opposite pairs). Default: the model card's (0, off,
-        unless the card says otherwise).
-    light_free_shift : float, optional
-        Mask models: how much higher (in logit units) the keep logit of every event is
-        in a window with no light (no cell of
-        :func:`~edeflare.models.halos.window_lights`): flare needs a bright source, and
-        without one what the network would drop is more likely scene. Default: the
-        model card's (0, off, unless the card says otherwise).
-    light_free_support : int, optional
-        Mask models: the light-free shift raises only the events with at least this
-        many other events of their window in their 5x5 square
-        (:func:`~edeflare.models.flaremask.event_support`); the isolated rest is left to
-        the network. A night lamp that fires too slowly to pass the light test
-        still scatters its light into sparse, isolated events along streaks and
-        rings; a scene's events come in edges.
-        Default: the model card's (0: every event, unless the card says otherwise).
-    light_free_crowding : float, optional
-        Mask models with a light-free support: the isolated events that get no light-free
-        shift are only those that crowd, more of them within a sixth of the sensor's
-        smaller side than the window's median density allows by this many Poisson
-        standard deviations (:func:`~edeflare.models.scatter.crowded_isolated`):
-        scattered light lies around its source, a sensor's background activity evenly
-        over it. 0: every isolated event. Default: the model card's (0, unless the card
-        says otherwise).
-    scatter_shift : float, optional
-        Mask models with a light-free support and crowding: in a window without a light,
-        where the crowded isolated events are a share of all
-        (:func:`~edeflare.models.scatter.scatter_field`: the scattered light of a lamp
-        too slow for the light test), the crowded ones' keep logit is lowered by this
-        much, the dense events' (the lamp's own) raised by this much more than the
-        light-free shift, and the sparser supported ones (the bloom next to the lamp)
-        get no light-free shift (:func:`~edeflare.models.scatter.light_free_shifts`).
-        Default: the model card's (0, off, unless the card says otherwise).
-    far_shift : float, optional
-        Mask models: how much higher (in logit units) the keep logit of an event is
-        in a window with lights where it is far from all of them
-        (:func:`~edeflare.models.halos.far_from_lights`: beyond
-        :data:`~edeflare.models.halos.FAR_REACH` of the sensor's width and
-        :data:`~edeflare.models.halos.FAR_RADII` of the light's radii) and neither
-        where their ghosts can be (:func:`~edeflare.models.ghosts.ghost_cells`) nor on
-        their diffraction spikes: flare lies around its source. Default: the model
-        card's (0, off, unless the card says otherwise).
+    **rules
+        Mask models: the rules' knobs (:mod:`edeflare.rules`: ``halo_shift``,
+        ``ghost_shift``, ``streak_shift``, ``far_shift``, ``light_free_shift``,
+        ``light_free_support``, ``light_free_crowding``, ``scatter_shift``), each
+        shifting the keep logits of the events where its evidence holds. A knob not
+        given (or None) takes the model card's value; the card's rules are off
+        unless it says otherwise.
 
     Attributes
     ----------
+    rules : RuleSet
+        The rules' knob values in use (the card's, with the overrides).
     pixel_params : dict or None
         The per-pixel refinement's weights of a ``mask.pixel`` model
         (:meth:`~edeflare.models.flaremask.FlareMaskNet.pixel_params`; from the
@@ -284,14 +229,7 @@ class ModelDeflarer:
         seed: int = 0,
         runtime: str = "auto",
         keep_threshold: float | None = None,
-        ghost_shift: float | None = None,
-        halo_shift: float | None = None,
-        streak_shift: float | None = None,
-        light_free_shift: float | None = None,
-        light_free_support: int | None = None,
-        light_free_crowding: float | None = None,
-        scatter_shift: float | None = None,
-        far_shift: float | None = None,
+        **rules: float | int | None,
     ) -> None:
         if decoder not in DECODERS:
             raise EdeflareError(f"decoder must be one of {DECODERS}, got {decoder!r}")
@@ -335,29 +273,13 @@ class ModelDeflarer:
         self.keep_threshold = float(threshold)
         if not 0.0 < self.keep_threshold < 1.0:
             raise EdeflareError(f"keep_threshold must be in (0, 1), got {self.keep_threshold}")
-        shift = card.ghost_shift if ghost_shift is None else ghost_shift
-        self.ghost_shift = check_ghost_shift(shift)
-        shift = card.halo_shift if halo_shift is None else halo_shift
-        self.halo_shift = check_halo_shift(shift)
-        shift = card.streak_shift if streak_shift is None else streak_shift
-        self.streak_shift = check_streak_shift(shift)
-        shift = card.light_free_shift if light_free_shift is None else light_free_shift
-        self.light_free_shift = check_logit_shift(shift, "light_free_shift")
-        support = card.light_free_support if light_free_support is None else light_free_support
-        self.light_free_support = check_support(support, "light_free_support")
-        crowding = card.light_free_crowding if light_free_crowding is None else light_free_crowding
-        self.light_free_crowding = check_logit_shift(crowding, "light_free_crowding")
-        shift = card.scatter_shift if scatter_shift is None else scatter_shift
-        self.scatter_shift = check_logit_shift(shift, "scatter_shift")
-        shift = card.far_shift if far_shift is None else far_shift
-        self.far_shift = check_logit_shift(shift, "far_shift")
-        for name in (
-            "ghost_shift", "halo_shift", "streak_shift", "light_free_shift", "far_shift",
-            "scatter_shift",
-        ):  # fmt: skip
-            if getattr(self, name) and not isinstance(model, FlareMaskNet):
+        self.rules = RuleSet({**card.rules, **{k: v for k, v in rules.items() if v is not None}})
+        for rule in RULES.values():
+            params = self.rules.params[rule.name]
+            if rule.active(params) and not isinstance(model, FlareMaskNet):
+                knob = next(k for k, v in vars(params).items() if v)
                 raise EdeflareError(
-                    f"{weights}: {name} needs a mask model, not a {card.preset} (voxel-to-voxel)"
+                    f"{weights}: {knob} needs a mask model, not a {card.preset} (voxel-to-voxel)"
                 )
         self.decoder = decoder
         self.batch_windows = int(batch_windows)
@@ -495,8 +417,8 @@ class ModelDeflarer:
             [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
         )
         logits = self._network(feats, sensor_size, True)
-        # each event's support, for the light-free shift: free with the refinement's counts
-        need = self.light_free_support and (self.light_free_shift or self.scatter_shift)
+        # each event's support, for the light-free rule: free with the refinement's counts
+        need = self.rules.needs_support
         supports = [np.empty(ev.size, np.int64) if need else None for _, ev in batch]
         out = [
             event_keep_logits(
@@ -505,44 +427,12 @@ class ModelDeflarer:
             )
             for (start, events), lg, support in zip(batch, logits, supports, strict=True)
         ]  # fmt: skip
-        priors = (self.ghost_shift, self.halo_shift, self.streak_shift)
-        if not (any(priors) or self.light_free_shift or self.scatter_shift or self.far_shift):
+        if not self.rules.active:
             return out
         for (start, events), v, support in zip(batch, out, supports, strict=True):
             # the lights' rates over the part of the window the stream covers
-            span = covered_us(events, start, w)
-            lights = window_lights(events, sensor_size, span)  # counted once for all priors
-            if not lights.any():
-                # flare needs a source: keep more without one, but not the scattered
-                # light of a source too slow for the light test (scatter.py)
-                if support is None:
-                    v += self.light_free_shift
-                    continue
-                v += light_free_shifts(
-                    events, sensor_size, support, shift=self.light_free_shift,
-                    gate=self.light_free_support, crowding=self.light_free_crowding,
-                    scatter_shift=self.scatter_shift, span_us=span,
-                )  # fmt: skip
-                continue
-            ghosts = None  # where the lights' ghosts can be: for the ghost prior and far shift
-            if self.ghost_shift or self.far_shift:
-                ghosts = ghost_cells(events, sensor_size, span, lights=lights)
-            if self.ghost_shift:
-                v -= self.ghost_shift * in_ghost_prior(
-                    events, sensor_size, span, lights=lights, cells=ghosts
-                )
-            if self.halo_shift:
-                v -= self.halo_shift * in_halo_prior(events, sensor_size, span, lights=lights)
-            if not (self.streak_shift or self.far_shift):
-                continue
-            spikes = in_streak_prior(events, sensor_size, span, lights=lights)
-            if self.streak_shift:
-                v -= self.streak_shift * spikes
-            if self.far_shift:
-                # far from every light, and neither where their ghosts can be nor on their
-                # spikes (the flare that reaches far)
-                far = far_from_lights(events, sensor_size, span, lights=lights, exclude=ghosts)
-                v += self.far_shift * (far & ~spikes)
+            ctx = WindowContext(events, sensor_size, covered_us(events, start, w), support)
+            self.rules.apply(v, ctx)
         return out
 
     def _run_mask(

@@ -22,8 +22,9 @@ from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 from torch import nn
 
-from ..errors import EdeflareError
+from ..errors import EdeflareError, ParameterError
 from ..io._atomic import atomic_path
+from ..rules import RuleSet, knob_fields
 from . import create_model, get_preset
 
 __all__ = [
@@ -65,14 +66,18 @@ class ModelCard:
     metrics: dict[str, Any] = field(default_factory=dict)
     notes: str = ""
     keep_threshold: float = 0.5  # mask models: keep an event above this keep probability
-    ghost_shift: float = 0.0  # mask models: keep logit lowered in the ghost prior (ghosts.py)
-    halo_shift: float = 0.0  # mask models: keep logit lowered in the halo prior (halos.py)
-    streak_shift: float = 0.0  # mask models: keep logit lowered on diffraction spikes (streaks.py)
-    light_free_shift: float = 0.0  # mask models: keep logit raised in windows without a light
-    light_free_support: int = 0  # ... only at events with this many others in their 5x5 square
-    light_free_crowding: float = 0.0  # ... and at isolated ones that do not crowd (scatter.py)
-    scatter_shift: float = 0.0  # ... and around a lamp too slow for the light test (scatter.py)
-    far_shift: float = 0.0  # mask models: keep logit raised far from every light (halos.py)
+    rules: dict[str, Any] = field(default_factory=dict)
+    """Mask models: the rules' knobs this model sets (:mod:`edeflare.rules`; the rest off)."""
+
+    def __post_init__(self) -> None:
+        try:
+            RuleSet(self.rules)
+        except ParameterError as exc:
+            raise WeightsError(f"model card: {exc}") from None
+
+    def rule_set(self) -> RuleSet:
+        """The card's rules, checked (:class:`~edeflare.rules.RuleSet`)."""
+        return RuleSet(self.rules)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""
@@ -80,14 +85,32 @@ class ModelCard:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ModelCard:
-        """Build from a dict, rejecting unknown keys."""
+        """Build from a dict, rejecting unknown keys.
+
+        A rule's knob at the top level (as cards written before the rules had one
+        registry hold them: ``{"halo_shift": 3, ...}``) moves into ``rules``.
+
+        Examples
+        --------
+        >>> ModelCard.from_dict({"preset": "mask.lite", "halo_shift": 3.0}).rules
+        {'halo_shift': 3.0}
+        """
         known = {f.name for f in dataclasses.fields(cls)}
+        knobs = set(knob_fields())
+        data = dict(data)
+        rules = dict(data.pop("rules", None) or {})
+        for key in sorted(set(data) & knobs):
+            rules.setdefault(key, data.pop(key))
         unknown = sorted(set(data) - known)
         if unknown:
             raise WeightsError(f"unknown model card keys {unknown}; known: {sorted(known)}")
         if "preset" not in data:
             raise WeightsError("model card lacks 'preset'")
-        return cls(**data)
+        try:
+            checked = RuleSet(rules)
+        except ParameterError as exc:
+            raise WeightsError(f"model card: {exc}") from None
+        return cls(**data, rules={k: checked[k] for k in rules})
 
 
 def save_model(path: str | os.PathLike[str], model: nn.Module, card: ModelCard) -> None:

@@ -1,6 +1,6 @@
 """Where a window's isolated events crowd: scattered light, not background activity.
 
-A night lamp too slow for the light test (:func:`~edeflare.models.halos.window_lights`)
+A night lamp too slow for the light test (:func:`~edeflare.rules.halo.window_lights`)
 still scatters its light into isolated events, along its streaks and rings, around it.
 A sensor's background activity fires isolated events too, but evenly over the sensor.
 :func:`crowded_isolated` tells the two apart by place: an isolated event crowds where
@@ -23,21 +23,27 @@ others' (median over windows).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
 
 from ..events import SensorSize, check_sensor_size
+from . import Rule, check_support, knob
+from .context import WindowContext
 
 __all__ = [
     "FIELD_MAX_RATE",
     "FIELD_MIN_EVENTS",
     "FIELD_MIN_SHARE",
+    "LIGHT_FREE_RULE",
     "SCATTER_CELL",
     "SCATTER_REACH",
     "SOURCE_SUPPORT",
+    "LightFreeParams",
     "crowded_isolated",
     "light_free_shifts",
+    "needs_support",
     "scatter_field",
     "scatter_reach",
 ]
@@ -195,7 +201,7 @@ def scatter_field(
         bool, one per event: :func:`crowded_isolated`'s answer.
     span_us : int, optional
         The time the window's events cover, in µs (default: from its first event to its
-        last; :func:`~edeflare.models.ghosts.covered_us` is what the model passes).
+        last; :func:`~edeflare.rules.ghost.covered_us` is what the model passes).
     cell, reach : int
         As for :func:`crowded_isolated`.
 
@@ -409,3 +415,65 @@ def light_free_shifts(
     out += float(scatter_shift) * (field & dense)  # the lamp itself
     out -= float(scatter_shift) * (field & crowded)  # its scattered light
     return out
+
+
+@dataclasses.dataclass(frozen=True)
+class LightFreeParams:
+    """The light-free rule's knobs: its shift, and which events it spares."""
+
+    light_free_shift: float = knob(
+        0.0,
+        "--light-free-shift",
+        "raise the keep logit by this much in the windows without a light (flare needs a "
+        "bright source; 0: off)",
+    )
+    light_free_support: int = knob(
+        0,
+        "--light-free-support",
+        "the light-free shift raises only the events with at least this many other events "
+        "of their window in their 5x5 square (a night lamp too slow for the light test "
+        "scatters isolated events; 0: every event)",
+        check=check_support,
+        metavar="N",
+    )
+    light_free_crowding: float = knob(
+        0.0,
+        "--light-free-crowding",
+        "with a light-free support, the isolated events still get the light-free shift "
+        "unless they crowd, more of them within a sixth of the sensor's smaller side than "
+        "the window's median density allows by this many Poisson standard deviations "
+        "(scattered light lies around its source, background activity evenly; 0: no "
+        "isolated event gets it)",
+        metavar="Z",
+    )
+    scatter_shift: float = knob(
+        0.0,
+        "--scatter-shift",
+        "with a light-free support and crowding: in a window without a light, where "
+        "crowded isolated events are a share of all (the scattered light of a lamp too "
+        "slow for the light test), lower them by this much, raise the dense events (the "
+        "lamp) by this much more, and give the sparser ones (its bloom) no light-free "
+        "shift (0: off)",
+    )
+
+
+def needs_support(params: LightFreeParams) -> bool:
+    """Whether the rule reads each event's 5x5 support at these values."""
+    return bool(params.light_free_support and (params.light_free_shift or params.scatter_shift))
+
+
+def _light_free_shift(params: LightFreeParams, ctx: WindowContext) -> np.ndarray | float:
+    if ctx.support is None or not needs_support(params):
+        return params.light_free_shift
+    return light_free_shifts(
+        ctx.events, ctx.sensor_size, ctx.support, shift=params.light_free_shift,
+        gate=params.light_free_support, crowding=params.light_free_crowding,
+        scatter_shift=params.scatter_shift, span_us=ctx.span_us,
+    )  # fmt: skip
+
+
+LIGHT_FREE_RULE = Rule(
+    "light-free", LightFreeParams, _light_free_shift,
+    lambda p: bool(p.light_free_shift or p.scatter_shift), "light-free",
+    "no light in the window (flare needs a bright source)",
+)  # fmt: skip

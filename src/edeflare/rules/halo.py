@@ -9,8 +9,8 @@ px from a lamp looks like a sparse scene event; it cannot know that the lamp mak
 events there more likely to be flare than the same event elsewhere. This prior says so.
 
 Each light of a window (the same test as the ghost prior's,
-:func:`~edeflare.models.ghosts.light_cells`:
-``cell x cell`` pixels firing at least :data:`~edeflare.models.ghosts.LIGHT_RATE`
+:func:`~edeflare.rules.ghost.light_cells`:
+``cell x cell`` pixels firing at least :data:`~edeflare.rules.ghost.LIGHT_RATE`
 events per pixel and millisecond) is the set of its bright pixels (those firing at
 that rate themselves), and its radius is that of the largest disc inside it: for a
 still light, the disc's radius; for a light that moves during the window and sweeps a
@@ -27,6 +27,7 @@ A window without a light is left alone.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 
@@ -36,16 +37,19 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from ..events import SensorSize, check_sensor_size
-from .ghosts import LIGHT_RATE, check_logit_shift, light_cells
+from . import Rule, knob
+from .context import WindowContext
+from .ghost import LIGHT_RATE, light_cells
 
 __all__ = [
     "FAR_RADII",
     "FAR_REACH",
     "HALO_EXTENT",
     "HALO_MAX_REACH",
+    "HALO_RULE",
     "LIGHT_CORE_RATE",
     "MIN_LIGHT_RADIUS",
-    "check_halo_shift",
+    "HaloParams",
     "far_from_lights",
     "halo_pixels",
     "in_halo_prior",
@@ -352,7 +356,7 @@ def window_lights(
 ) -> np.ndarray:
     """The cells of a window's lights: what the priors and the light-free shift act on.
 
-    The :func:`~edeflare.models.ghosts.light_cells` (the cell rate) whose connected group
+    The :func:`~edeflare.rules.ghost.light_cells` (the cell rate) whose connected group
     holds a light of :func:`light_pixels` (a solid disc of radius at least
     :data:`MIN_LIGHT_RADIUS`) whose bright pixels fire at :data:`LIGHT_CORE_RATE` in the
     median. The other groups are dense scene or hot pixels, not sources of flare.
@@ -408,7 +412,7 @@ def far_from_lights(
 
     ``lights`` is the window's :func:`window_lights`, when already counted; ``exclude``,
     cells (the same shape) whose events are never far, such as where the lights' ghosts
-    can be (:func:`~edeflare.models.ghosts.ghost_cells`).
+    can be (:func:`~edeflare.rules.ghost.ghost_cells`).
 
     Examples
     --------
@@ -635,7 +639,7 @@ def in_halo_prior(
     lights: np.ndarray | None = None,
 ) -> np.ndarray:
     """Whether each event of a window lies in its :func:`halo_pixels` (``lights``: the
-    window's :func:`~edeflare.models.ghosts.light_cells`, when already counted).
+    window's :func:`~edeflare.rules.ghost.light_cells`, when already counted).
 
     Examples
     --------
@@ -692,12 +696,25 @@ def in_halo_prior(
     return inside
 
 
-def check_halo_shift(value: object) -> float:
-    """A halo shift (keep-logit units) as a float, or a ParameterError: finite, >= 0.
+@dataclasses.dataclass(frozen=True)
+class HaloParams:
+    """The halo rule's knob."""
 
-    Examples
-    --------
-    >>> check_halo_shift(1)
-    1.0
-    """
-    return check_logit_shift(value, "halo_shift")
+    halo_shift: float = knob(
+        0.0,
+        "--halo-shift",
+        "lower the keep logit by this much in the halo of the window's lights (from just "
+        "outside each light to six of its radii, at most a fifth of the sensor's width; "
+        "0: off)",
+    )
+
+
+def _halo_shift(params: HaloParams, ctx: WindowContext) -> np.ndarray:
+    inside = in_halo_prior(ctx.events, ctx.sensor_size, ctx.span_us, lights=ctx.lights)
+    return -(params.halo_shift * inside)
+
+
+HALO_RULE = Rule(
+    "halo", HaloParams, _halo_shift, lambda p: bool(p.halo_shift), "lights",
+    "the band of scattered light around each light",
+)  # fmt: skip

@@ -9,7 +9,7 @@ A mask model trained on sparse scattered light keeps them, because dense and
 connected is what a scene edge looks like to a cell.
 
 This prior finds them from the geometry alone. Around each light of the window (the
-test of :func:`~edeflare.models.halos.light_pixels`: its centre, the farthest of its
+test of :func:`~edeflare.rules.halo.light_pixels`: its centre, the farthest of its
 pixels from the centre, its radius ``R``) the saturated pixels (:data:`MIN_PIXEL_EVENTS`
 events or more) out to :data:`STREAK_EXTENT` radii are binned by angle
 (:data:`ANGLE_BINS` around) and by distance (rings of ``RADIAL_BIN_PX``), starting
@@ -47,6 +47,7 @@ its run.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numba
@@ -54,15 +55,17 @@ import numpy as np
 from scipy import ndimage
 
 from ..events import SensorSize, check_sensor_size
-from .ghosts import check_logit_shift
-from .halos import _lights
+from . import Rule, knob
+from .context import WindowContext
+from .halo import _lights
 
 __all__ = [
     "ANGLE_BINS",
     "FILL_SHARE",
     "MIN_PIXEL_EVENTS",
     "STREAK_EXTENT",
-    "check_streak_shift",
+    "STREAK_RULE",
+    "StreakParams",
     "in_streak_prior",
 ]
 
@@ -325,7 +328,7 @@ def in_streak_prior(
     lights: np.ndarray | None = None,
 ) -> np.ndarray:
     """Whether each event of a window lies on a diffraction spike of one of its lights
-    (``lights``: the window's :func:`~edeflare.models.ghosts.light_cells`, when
+    (``lights``: the window's :func:`~edeflare.rules.ghost.light_cells`, when
     already counted).
 
     Examples
@@ -409,12 +412,23 @@ def in_streak_prior(
     return on_spike[pixel]
 
 
-def check_streak_shift(value: object) -> float:
-    """A streak shift (keep-logit units) as a float, or a ParameterError: finite, >= 0.
+@dataclasses.dataclass(frozen=True)
+class StreakParams:
+    """The streak rule's knob."""
 
-    Examples
-    --------
-    >>> check_streak_shift(8)
-    8.0
-    """
-    return check_logit_shift(value, "streak_shift")
+    streak_shift: float = knob(
+        0.0,
+        "--streak-shift",
+        "lower the keep logit by this much on the diffraction spikes of the window's "
+        "lights (saturated radial runs in opposite pairs; 0: off)",
+    )
+
+
+def _streak_shift(params: StreakParams, ctx: WindowContext) -> np.ndarray:
+    return -(params.streak_shift * ctx.on_spikes)
+
+
+STREAK_RULE = Rule(
+    "streak", StreakParams, _streak_shift, lambda p: bool(p.streak_shift), "lights",
+    "the lights' saturated diffraction spikes",
+)  # fmt: skip

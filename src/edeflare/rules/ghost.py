@@ -24,23 +24,23 @@ millisecond (320 events in an 8x8 cell in 20 ms).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
-import math
 
 import numba
 import numpy as np
 from scipy import ndimage
 
-from ..errors import ParameterError
 from ..events import SensorSize, check_sensor_size
+from . import Rule, knob
+from .context import WindowContext
 
 __all__ = [
     "GHOST_FACTORS",
     "GHOST_MAX_NEIGHBOURS",
+    "GHOST_RULE",
     "LIGHT_RATE",
-    "check_ghost_shift",
-    "check_logit_shift",
-    "check_support",
+    "GhostParams",
     "covered_us",
     "ghost_cells",
     "in_ghost_prior",
@@ -293,59 +293,27 @@ def _neighbourhood_counts(x, y, where):  # pragma: no cover - compiled
     return out
 
 
-def check_logit_shift(value: object, name: str) -> float:
-    """A prior's keep-logit shift ``name`` as a float, or a ParameterError: finite, >= 0.
+@dataclasses.dataclass(frozen=True)
+class GhostParams:
+    """The ghost rule's knob."""
 
-    Examples
-    --------
-    >>> check_logit_shift(-1.0, "ghost_shift")
-    Traceback (most recent call last):
-    ...
-    edeflare.errors.ParameterError: ghost_shift must be a finite number >= 0, got -1.0
-    """
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float, np.integer, np.floating))
-        or not math.isfinite(value)
-        or value < 0
-    ):
-        raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
-    return float(value)
+    ghost_shift: float = knob(
+        0.0,
+        "--ghost-shift",
+        "lower the keep logit by this much for the sparse events where a reflective ghost "
+        "of the window's lights can be (the lights reflected through the sensor's centre; "
+        "0: off)",
+    )
 
 
-def check_support(value: object, name: str) -> int:
-    """A count of neighbouring events ``name`` as an int, or a ParameterError: whole, >= 0.
-
-    Examples
-    --------
-    >>> check_support(2.0, "light_free_support")
-    2
-    >>> check_support(1.5, "light_free_support")
-    Traceback (most recent call last):
-    ...
-    edeflare.errors.ParameterError: light_free_support must be a whole number >= 0, got 1.5
-    """
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float, np.integer, np.floating))
-        or not math.isfinite(value)
-        or value < 0
-        or value != int(value)
-    ):
-        raise ParameterError(f"{name} must be a whole number >= 0, got {value!r}")
-    return int(value)
+def _ghost_shift(params: GhostParams, ctx: WindowContext) -> np.ndarray:
+    inside = in_ghost_prior(
+        ctx.events, ctx.sensor_size, ctx.span_us, lights=ctx.lights, cells=ctx.ghost_cells
+    )
+    return -(params.ghost_shift * inside)
 
 
-def check_ghost_shift(value: object) -> float:
-    """A ghost shift (keep-logit units) as a float, or a ParameterError: finite, >= 0.
-
-    Examples
-    --------
-    >>> check_ghost_shift(2)
-    2.0
-    >>> check_ghost_shift(-1.0)
-    Traceback (most recent call last):
-    ...
-    edeflare.errors.ParameterError: ghost_shift must be a finite number >= 0, got -1.0
-    """
-    return check_logit_shift(value, "ghost_shift")
+GHOST_RULE = Rule(
+    "ghost", GhostParams, _ghost_shift, lambda p: bool(p.ghost_shift), "lights",
+    "where a reflective ghost of the lights can be",
+)  # fmt: skip
