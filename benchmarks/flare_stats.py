@@ -32,10 +32,10 @@ import numpy as np
 from _common import REAL, report
 
 from edeflare.eval.flare_stats import RING_EDGES, flare_statistics, lights_from_events
-from edeflare.eval.score import bundled_lights, load_lights
 from edeflare.io import read_events
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
+from edeflare.lights import bundled_lights, load_lights
 from edeflare.viz import event_frame, grid, save_image
 
 RECORDINGS = {  # file: short label of the figure

@@ -42,10 +42,11 @@ from edeflare.data.generate import generate_dataset
 from edeflare.data.recipe import RECIPES
 from edeflare.eval.benchmark import benchmark
 from edeflare.eval.metrics import HIGHER_IS_BETTER, METRICS, keep_only_oracle
-from edeflare.eval.score import bundled_lights, score_recording
+from edeflare.eval.score import score_recording
 from edeflare.events import event_keys
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
+from edeflare.lights import bundled_lights
 from edeflare.methods import Method, Streamer, create_method
 
 RECORDINGS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")

@@ -51,8 +51,9 @@ from _common import report
 from PIL import Image
 
 from edeflare import list_methods
-from edeflare.eval.score import classify_events, load_lights, score_events
+from edeflare.eval.score import classify_events, score_events
 from edeflare.events import EVENT_DTYPE, make_events, sort_events
+from edeflare.lights import load_lights
 from edeflare.methods import deflare
 
 PICTURE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "real_flare_example.png"

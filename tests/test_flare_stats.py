@@ -9,9 +9,9 @@ import pytest
 
 from conftest import real_data_dir
 from edeflare.eval.flare_stats import RING_EDGES, flare_statistics, lights_from_events
-from edeflare.eval.score import Lights, LightSource, bundled_lights, load_lights
 from edeflare.events import make_events
 from edeflare.io import read_events
+from edeflare.lights import Lights, LightSource, bundled_lights, load_lights
 
 SIZE = (64, 48)
 CX, CY, R = 32, 24, 4.0

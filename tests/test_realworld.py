@@ -16,24 +16,26 @@ from edeflare.eval.evaluate import evaluate
 from edeflare.events import EVENT_DTYPE, center_crop, make_events
 from edeflare.io import read_events, write_events
 from edeflare.io.sequence import list_sequences, read_sequence
-from edeflare.realworld import (
+from edeflare.lights import (
     Circle,
+    Polygon,
+    detect_light_source,
+    light_mask,
+    load_lights,
+    parse_light,
+    parse_lights,
+)
+from edeflare.realworld import (
     PairConfig,
     PairingError,
-    Polygon,
     Signature,
     clean_reference,
-    detect_light_source,
     draw_noise,
     estimate_background_rate,
     estimate_offset,
     glare_mask,
     inject_noise,
-    light_mask,
-    load_lights,
     pair_recordings,
-    parse_light,
-    parse_lights,
     plot_alignment,
     polarity_signature,
     scan_recording,
@@ -278,14 +280,15 @@ def test_parse_lights_from_strings_and_json(tmp_path):
         )
     )
     lights = parse_lights(["circle:5,5,2", str(path)])
-    assert [str(s) for s in lights] == [
+    assert [str(s.shape) for s in lights] == [
         "circle:5,5,2",
         "circle:1,2,3",
         "polygon:0,0,4,0,4,4",
         "circle:9,9,1",
     ]
-    assert [parse_light(str(s)) for s in lights] == lights  # str round-trips
-    assert load_lights(path) == lights[1:]
+    assert [parse_light(str(s.shape)) for s in lights] == [s.shape for s in lights]  # round trip
+    # the older layout of a pairing's lights loads as fixed sources of the one type
+    assert load_lights(path).sources == tuple(lights[1:])
 
 
 @pytest.mark.parametrize(

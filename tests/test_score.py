@@ -11,21 +11,13 @@ import numpy as np
 import pytest
 
 import edeflare
+import edeflare.methods.base
 from conftest import require
 from edeflare.cli import main
 from edeflare.errors import AnnotationError, EdeflareError, EventFileError, ParameterError
-from edeflare.eval.score import (
-    Lights,
-    LightSource,
-    bundled_lights,
-    classify_events,
-    combined_score,
-    detect_lights,
-    load_lights,
-    score_events,
-    score_recording,
-)
+from edeflare.eval.score import classify_events, combined_score, score_events, score_recording
 from edeflare.events import make_events
+from edeflare.lights import Lights, LightSource, bundled_lights, detect_lights, load_lights
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 SIZE = (60, 50)
@@ -230,7 +222,7 @@ def test_load_lights_reads_every_shape(tmp_path):
     ("data", "message"),
     [
         ("{not json", "is not a JSON file"),
-        ('[{"circle": [1, 1, 1]}]', "must hold an object"),
+        ('[{"circle": [1, 1, 1]}]', "light 0: light type must be 'circle' or 'polygon'"),
         ({"sources": []}, "non-empty list"),
         ({"sources": [{"circle": [1, 1]}]}, r"source 0: a circle must be \[x, y, r\]"),
         ({"sources": [{"circle": [1, 1, -2]}]}, "radius must be positive"),
@@ -427,7 +419,7 @@ def test_bundled_annotations_list():
     [("prophesee_gen3_rotating_light.raw", 1), ("davis346_flicker_lamps.aedat4", 2)],
 )
 def test_real_annotation_holds_the_dense_core_and_raw_scores_nothing(name, n_sources):
-    from edeflare.realworld import detect_light_source
+    from edeflare.lights import detect_light_source
 
     path = _real(name)
     events, size = edeflare.read_events(path)

@@ -21,7 +21,7 @@ middle time.
   the 95th percentile over those pixels of the last event's delay after the disc left
   (:func:`response_time`; the raster ``lights_gen3_pixel_trains.png`` shows the trains).
 - ``davis346_flicker_lamps.aedat4``: two fixed ceiling lamps, found on the whole
-  recording's event density by ``edeflare.realworld.detect_light_source``.
+  recording's event density by ``edeflare.lights.detect_light_source``.
 
 Radius (both): the event density per pixel ring of 1 px around the centre (for the
 moving blob, around its position at each event's time) falls below 5 % of the core's
@@ -41,7 +41,7 @@ from PIL import Image, ImageDraw
 
 from edeflare import read_events
 from edeflare.eval.score import Lights, LightSource, classify_events
-from edeflare.realworld import detect_light_source
+from edeflare.lights import detect_light_source
 from edeflare.viz import event_frame, grid, save_image
 
 # When each annotation was last changed (Gen3: the response time added).

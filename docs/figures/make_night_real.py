@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from edeflare.deflare import deflare
+from edeflare.methods import deflare
 from edeflare.io import read_events
 from edeflare.viz import event_frame, grid, save_image
 

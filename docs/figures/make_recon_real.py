@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from edeflare.deflare import create_method
+from edeflare.methods import create_method
 from edeflare.eval.downstream import reconstruct_recording
 from edeflare.viz import save_image
 

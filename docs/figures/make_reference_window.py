@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from reference_window import OFFSET, PANEL_COLUMNS, SENSOR, WINDOW_US, reference_window
 
 from edeflare import list_methods
-from edeflare.deflare import deflare
+from edeflare.methods import deflare
 from edeflare.viz import event_frame, grid, save_image
 
 

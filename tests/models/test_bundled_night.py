@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from conftest import SHARED_DATA, real_data_dir, require
-from edeflare.eval.score import bundled_lights, load_lights, score_events, score_recording
+from edeflare.eval.score import score_events, score_recording
 from edeflare.events import event_keys
 from edeflare.io import read_events
+from edeflare.lights import bundled_lights, load_lights
 from edeflare.methods import deflare
 from edeflare.models.infer import DEFAULT_MODEL, bundled_weights
 from edeflare.models.weights import read_card

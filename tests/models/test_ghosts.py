@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from edeflare.events import make_events, merge_events
-from edeflare.rules.ghost import LIGHT_RATE, ghost_cells, in_ghost_prior
+from edeflare.lights.cells import LIGHT_RATE
+from edeflare.rules.ghost import ghost_cells, in_ghost_prior
 
 
 def _light(x0: int, y0: int, n: int = 400, size: int = 8) -> np.ndarray:

@@ -9,24 +9,26 @@ from scipy import ndimage
 from conftest import random_events
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events, merge_events
+from edeflare.lights.cells import (
+    MIN_LIGHT_RADIUS,
+    light_cells,
+    light_pixels,
+    window_lights,
+)
 from edeflare.methods import create_method
 from edeflare.models import create_model
 from edeflare.models.flaremask import event_support
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.weights import ModelCard, save_model
-from edeflare.rules.ghost import ghost_cells, in_ghost_prior, light_cells
+from edeflare.rules.ghost import ghost_cells, in_ghost_prior
 from edeflare.rules.halo import (
     FAR_RADII,
     FAR_REACH,
     HALO_EXTENT,
     HALO_MAX_REACH,
-    LIGHT_CORE_RATE,
-    MIN_LIGHT_RADIUS,
     far_from_lights,
     halo_pixels,
     in_halo_prior,
-    light_pixels,
-    window_lights,
 )
 
 SIZE = (192, 64)  # wide enough that no halo here meets HALO_MAX_REACH (38 px)
@@ -252,7 +254,8 @@ def test_the_band_of_a_lights_box_is_the_distance_transforms(shape):
     # 600 px long); each way, the band of scipy's exact distance transform
     from scipy import ndimage
 
-    from edeflare.rules.halo import _edge_pixels, _in_band
+    from edeflare.lights.cells import _edge_pixels
+    from edeflare.rules.halo import _in_band
 
     yy, xx = np.mgrid[0:40, 0:640]
     r = np.hypot(yy - 20, xx - 20)
@@ -276,7 +279,7 @@ def test_the_band_of_a_lights_box_is_the_distance_transforms(shape):
 def test_a_lights_filled_holes_radius_and_edge_are_scipys(seed):
     from scipy import ndimage
 
-    from edeflare.rules.halo import _edge_pixels, _fill_holes, _inscribed_radius
+    from edeflare.lights.cells import _edge_pixels, _fill_holes, _inscribed_radius
 
     mask = np.random.default_rng(seed).random((40, 56)) < 0.55
     np.testing.assert_array_equal(_fill_holes(mask), ndimage.binary_fill_holes(mask))
@@ -421,7 +424,7 @@ def test_dense_scene_and_hot_pixels_are_no_lights_and_get_the_light_free_shift(r
     lamp, texture = _block(40, 16, side=16, per_pixel=20), _block(120, 40, side=16, per_pixel=8)
     hot = make_events(np.arange(400) * 50, np.full(400, 180), np.full(400, 8), np.ones(400))
     groups = ndimage.label(light_cells(merge_events(lamp, texture, hot), SIZE, 20_000))[1]
-    assert groups == 3 and LIGHT_CORE_RATE == 0.55
+    assert groups == 3  # all three pass the cell rate; only the lamp fires as a light does
     cells = window_lights(merge_events(lamp, texture, hot), SIZE, 20_000)
     expected = np.zeros_like(cells)
     expected[2:4, 5:7] = True  # the lamp's four cells
@@ -440,7 +443,7 @@ def test_dense_scene_and_hot_pixels_are_no_lights_and_get_the_light_free_shift(r
 def test_a_light_in_the_part_of_a_window_the_stream_covers_is_found():
     # a stream that ends 5 ms into its last window: its light fires 4 events per pixel in
     # those 5 ms (0.8 per ms; 0.2 over the whole window, under the light rate of 0.25)
-    from edeflare.rules.ghost import covered_us
+    from edeflare.lights.cells import covered_us
 
     ev = _block(40, 20, per_pixel=4, t0=15_000)
     ev["t"] = 15_000 + (ev["t"] - 15_000) // 4  # squeezed into 15-20 ms

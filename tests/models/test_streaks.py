@@ -7,9 +7,9 @@ import pytest
 
 from conftest import random_events
 from edeflare.events import make_events, merge_events
+from edeflare.lights.cells import light_cells
 from edeflare.methods import create_method
 from edeflare.models.infer import ModelDeflarer, bundled_weights
-from edeflare.rules.ghost import light_cells
 from edeflare.rules.streak import MIN_PIXEL_EVENTS, _runs, in_streak_prior
 
 SIZE = (200, 120)

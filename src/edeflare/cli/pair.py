@@ -129,7 +129,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the configuration, pair the recordings, print a summary."""
-    from ..realworld import PairConfig, pair_recordings, parse_lights
+    from ..lights import parse_lights
+    from ..realworld import PairConfig, pair_recordings
 
     config = PairConfig(
         name=args.name,

@@ -10,7 +10,7 @@ Definition (:func:`flare_score`):
 
 1. **Source.** The centre ``c`` is the brightest compact region of ``E``,
    found by the project's one light-source detector,
-   :func:`edeflare.realworld.detect_light_source` (3x3 median against hot
+   :func:`edeflare.lights.detect_light_source` (3x3 median against hot
    pixels, a Gaussian of standard deviation ``2 r_s``, the region above
    half its maximum; its centroid, rounded). Compare streams on the same
    geometry: locate the source once, on the input, and score every stream
@@ -43,7 +43,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..events import SensorSize, count_map
-from ..realworld.geometry import detect_light_source
+from ..lights import detect_light_source
 
 __all__ = [
     "FlareGeometry",

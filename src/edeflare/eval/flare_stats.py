@@ -24,7 +24,7 @@ event's time, so a 36 px blob at 640x480 and a 10 px lamp at 346x260 compare.
 Examples
 --------
 >>> from edeflare.events import make_events
->>> from edeflare.eval.score import LightSource, Lights
+>>> from edeflare.lights import LightSource, Lights
 >>> t, x, y = [0, 10, 20, 30, 1000], [10, 10, 11, 16, 40], [10, 10, 10, 10, 30]
 >>> ev = make_events(t, x, y, [1, 1, 0, 1, 1])
 >>> st = flare_statistics(ev, Lights((LightSource.circle(10, 10, 2),)), (64, 48))
@@ -41,7 +41,8 @@ from typing import Any
 import numpy as np
 
 from ..events import SensorSize, check_events, check_sensor_size
-from .score import Lights, LightSource, classify_events
+from ..lights import Lights, LightSource
+from .score import classify_events
 
 __all__ = ["RING_EDGES", "FlareStatistics", "flare_statistics", "lights_from_events"]
 

@@ -45,13 +45,15 @@ The scores are
   noise, which a denoiser rightly removes, so ``background_kept`` is reported
   but left out of ``combined`` (the harmonic mean of the other two).
 
-Light sources come from a JSON annotation (:func:`load_lights`) or are
-detected window by window (:func:`detect_lights`, the brightest compact
-regions of the event density, :func:`edeflare.realworld.detect_light_source`).
+Light sources (:mod:`edeflare.lights`) come from a JSON annotation
+(:func:`~edeflare.lights.load_lights`) or are detected window by window
+(:func:`~edeflare.lights.detect_lights`, the brightest compact regions of the
+event density).
 
 Examples
 --------
 >>> from edeflare.events import make_events
+>>> from edeflare.lights import Lights, LightSource
 >>> ev = make_events([0, 1, 2, 3], [10, 15, 30, 49], [10, 10, 10, 39], [1, 1, 1, 1])
 >>> lights = Lights((LightSource.circle(10, 10, 2),), halo_factor=6.0, ghost_factor=1.0)
 >>> classify_events(ev, lights, (60, 50)).labels.tolist()  # light, halo, background, ghost
@@ -61,7 +63,6 @@ Examples
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 import time
@@ -71,456 +72,22 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import AnnotationError, EventFileError, ParameterError
+from ..errors import EventFileError, ParameterError
 from ..events import SensorSize, check_events, check_sensor_size, window_start_for
+from ..lights import Lights, detect_lights, load_lights
 
 __all__ = [
-    "LightSource",
-    "Lights",
     "MethodScore",
     "Regions",
     "ScoreReport",
-    "bundled_lights",
     "classify_events",
     "combined_score",
-    "detect_lights",
-    "load_lights",
     "score_events",
     "score_recording",
 ]
 
 REGIONS = ("light", "halo", "ghost", "flare", "background")
 _LABELS = np.array(["background", "light", "rim", "halo", "ghost", "halo+ghost"])
-
-
-@dataclasses.dataclass(frozen=True)
-class LightSource:
-    """One light source whose geometry may change in time.
-
-    Build one with :meth:`circle`, :meth:`polygon`, :meth:`track` or
-    (detection) :meth:`steps`. ``kind`` is one of those names; ``table``
-    holds ``(t_us, cx, cy, r)`` rows (one row for a fixed circle; for
-    ``steps`` each row holds from its time until the next row's, NaN where
-    the source is absent), ``points`` a polygon's vertices.
-    ``halo_outer_px`` / ``ghost_radius_px`` override the factors of
-    :class:`Lights`; ``ghost=False`` gives the source no ghost region.
-    ``response_us`` (moving sources) is how long the sensor's pixels keep
-    firing after the source has left them: an event belongs to the light
-    (and the rim and halo are measured from it) if it lies in any of the
-    source's discs of the last ``response_us`` before it, not only the
-    current one (:func:`classify_events`).
-
-    Examples
-    --------
-    >>> s = LightSource.track([[0, 10, 10, 2], [100, 20, 10, 4]])
-    >>> [v.tolist() for v in s.at(np.array([-5, 50, 500]))]  # held outside the track
-    [[10.0, 15.0, 20.0], [10.0, 10.0, 10.0], [2.0, 3.0, 4.0]]
-    """
-
-    kind: str
-    table: np.ndarray
-    points: tuple[tuple[float, float], ...] = ()
-    name: str = ""
-    halo_outer_px: float | None = None
-    ghost_radius_px: float | None = None
-    ghost: bool = True
-    response_us: float = 0.0
-
-    @classmethod
-    def circle(cls, cx: float, cy: float, r: float, **options: Any) -> LightSource:
-        """A fixed disc: centre ``(cx, cy)``, radius ``r`` (pixels)."""
-        return cls("circle", _rows([[0, cx, cy, r]], "circle"), **options)
-
-    @classmethod
-    def polygon(cls, points: Sequence[Sequence[float]], **options: Any) -> LightSource:
-        """A fixed polygon (even-odd rule, as :class:`edeflare.realworld.Polygon`)."""
-        from ..realworld.geometry import Polygon
-
-        poly = Polygon(tuple(tuple(p) for p in points))  # validates
-        xs, ys = np.array(poly.points).T
-        area = 0.5 * abs(float(np.dot(xs, np.roll(ys, -1)) - np.dot(ys, np.roll(xs, -1))))
-        if not area > 0:
-            raise ParameterError("a polygon must enclose a positive area")
-        r = math.sqrt(area / math.pi)
-        return cls("polygon", _rows([[0, xs.mean(), ys.mean(), r]], "polygon"), poly.points,
-                   **options)  # fmt: skip
-
-    @classmethod
-    def track(cls, rows: Sequence[Sequence[float]], **options: Any) -> LightSource:
-        """A moving disc: ``[[t_us, cx, cy, r], ...]``, linear in time, held outside."""
-        table = _rows(rows, "track")
-        if np.any(np.diff(table[:, 0]) <= 0):
-            raise ParameterError("track times must increase strictly")
-        return cls("track", table, **options)
-
-    @classmethod
-    def steps(cls, rows: Sequence[Sequence[float]], **options: Any) -> LightSource:
-        """Piecewise constant: row ``i`` holds from its time to row ``i + 1``'s (NaN: absent)."""
-        table = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
-        return cls("steps", table, **options)
-
-    def at(self, t_us: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(cx, cy, r)`` at the times ``t_us`` (NaN where the source is absent)."""
-        t = np.asarray(t_us, dtype=np.float64)
-        tab = self.table
-        if self.kind in ("circle", "polygon") or (len(tab) == 1 and self.kind != "steps"):
-            return tuple(np.full(t.shape, tab[0, k]) for k in (1, 2, 3))  # type: ignore[return-value]
-        if self.kind == "track":
-            return tuple(np.interp(t, tab[:, 0], tab[:, k]) for k in (1, 2, 3))  # type: ignore[return-value]
-        i = np.searchsorted(tab[:, 0], t, side="right") - 1
-        ok = i >= 0
-        out = []
-        for k in (1, 2, 3):
-            v = np.full(t.shape, np.nan)
-            v[ok] = tab[i[ok], k]
-            out.append(v)
-        return tuple(out)  # type: ignore[return-value]
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON form read by :func:`load_lights`."""
-        tab = self.table
-        if self.kind == "circle":
-            d: dict[str, Any] = {"circle": [float(v) for v in tab[0, 1:]]}
-        elif self.kind == "polygon":
-            d = {"polygon": [list(p) for p in self.points]}
-        else:
-            d = {self.kind: [[int(r[0]), *(None if math.isnan(v) else float(v) for v in r[1:])]
-                             for r in tab]}  # fmt: skip
-        if self.name:
-            d["name"] = self.name
-        if self.halo_outer_px is not None:
-            d["halo_outer_px"] = self.halo_outer_px
-        if self.ghost_radius_px is not None:
-            d["ghost_radius_px"] = self.ghost_radius_px
-        if not self.ghost:
-            d["ghost"] = False
-        if self.response_us:
-            d["response_us"] = self.response_us
-        return d
-
-    def distance(self, x: np.ndarray, y: np.ndarray, t_us: np.ndarray) -> tuple[np.ndarray, ...]:
-        """``(dist, cx, cy, r)``: each point's distance outside the source at its time.
-
-        ``dist`` is 0 inside, ``inf`` where the source is absent; with a
-        ``response_us``, the least distance outside the discs of the times
-        ``t - response_us .. t`` (sampled in 32 steps). ``cx, cy, r`` are the
-        disc at ``t`` (a polygon's: its equal-area disc).
-
-        Examples
-        --------
-        >>> s = LightSource.track([[0, 0, 0, 2], [10, 10, 0, 2]], response_us=5)
-        >>> o = np.zeros(2)
-        >>> s.distance(np.array([5.0, 0.0]), o, np.array([10, 10]))[0].tolist()  # 5 px behind
-        [0.0, 3.0]
-        """
-        cx, cy, r = self.at(t_us)
-        present = np.isfinite(cx)
-        if self.kind == "polygon":
-            from ..realworld.geometry import Polygon
-
-            return (Polygon(self.points).distance(x, y), cx, cy, r)
-        dist = np.where(present, np.maximum(0.0, np.hypot(x - cx, y - cy) - r), np.inf)
-        if self.response_us > 0 and self.kind in ("track", "steps"):
-            t = np.asarray(t_us, dtype=np.float64)
-            for k in range(1, 33):
-                px, py, pr = self.at(t - self.response_us * k / 32)
-                d = np.maximum(0.0, np.hypot(x - px, y - py) - pr)
-                dist = np.fmin(dist, np.where(np.isfinite(px), d, np.inf))
-        return (dist, cx, cy, r)
-
-
-def _rows(rows: Any, what: str) -> np.ndarray:
-    try:
-        table = np.asarray(rows, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ParameterError(f"a {what} needs numbers, got {rows!r}") from None
-    if table.ndim != 2 or table.shape[1] != 4 or len(table) == 0:
-        shape = "[x, y, r]" if what == "circle" else "[[t_us, x, y, r], ...]"
-        raise ParameterError(f"a {what} must be {shape}, got {rows!r}")
-    if not np.isfinite(table).all():
-        raise ParameterError(f"a {what} needs finite numbers, got {rows!r}")
-    if np.any(table[:, 3] <= 0):
-        raise ParameterError(f"a {what}'s radius must be positive, got {rows!r}")
-    return table
-
-
-@dataclasses.dataclass(frozen=True)
-class Lights:
-    """The light sources of a recording and the region sizes around them.
-
-    Parameters
-    ----------
-    sources : tuple of LightSource
-    margin_px : float
-        Rim between the source and its halo, counted nowhere.
-    halo_factor : float
-        The halo's outer radius as a multiple of the source radius.
-    ghost_factor : float
-        The ghost disc's radius as a multiple of the source radius.
-    note : str
-        Free text (how the annotation was made).
-    score_background : bool
-        False: the background is only sensor noise (a light in the dark); its
-        ``background_kept`` is reported but not part of the combined score.
-
-    Examples
-    --------
-    >>> Lights((LightSource.circle(5, 5, 2),)).halo_factor
-    6.0
-    """
-
-    sources: tuple[LightSource, ...]
-    margin_px: float = 2.0
-    halo_factor: float = 6.0
-    ghost_factor: float = 2.0
-    note: str = ""
-    score_background: bool = True
-
-    def __post_init__(self) -> None:
-        if not self.sources:
-            raise ParameterError("no light sources")
-        if not isinstance(self.score_background, bool):
-            raise ParameterError(
-                f"score_background must be true or false, got {self.score_background!r}"
-            )
-        for name in ("margin_px", "halo_factor", "ghost_factor"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ParameterError(f"{name} must be a finite number, got {v!r}")
-            if v < 0 or (name == "halo_factor" and v <= 1):
-                raise ParameterError(f"{name} out of range: {v!r}")
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON form read by :func:`load_lights`."""
-        return {
-            "margin_px": self.margin_px,
-            "halo_factor": self.halo_factor,
-            "ghost_factor": self.ghost_factor,
-            "note": self.note,
-            "score_background": self.score_background,
-            "sources": [s.to_dict() for s in self.sources],
-        }
-
-
-_SOURCE_KEYS = {"circle", "polygon", "track", "name", "halo_outer_px", "ghost_radius_px", "ghost",
-                "response_us"}  # fmt: skip
-_TOP_KEYS = {"sources", "margin_px", "halo_factor", "ghost_factor", "note", "sensor_size",
-             "recording", "date", "method", "checks", "score_background"}  # fmt: skip
-
-
-def _source_from_json(item: Any) -> LightSource:
-    if not isinstance(item, dict):
-        raise ParameterError(f"must be an object, got {item!r}")
-    unknown = set(item) - _SOURCE_KEYS
-    if unknown:
-        raise ParameterError(f"unknown keys {sorted(unknown)}; valid: {sorted(_SOURCE_KEYS)}")
-    shapes = [k for k in ("circle", "polygon", "track") if k in item]
-    if len(shapes) != 1:
-        raise ParameterError("needs exactly one of 'circle', 'polygon', 'track'")
-    options: dict[str, Any] = {"name": str(item.get("name", ""))}
-    if "response_us" in item:
-        v = item["response_us"]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < math.inf:
-            raise ParameterError(f"response_us must be a number >= 0, got {v!r}")
-        if "track" not in item:
-            raise ParameterError("response_us applies to a track (a moving source) only")
-        options["response_us"] = float(v)
-    for key in ("halo_outer_px", "ghost_radius_px"):
-        if key in item:
-            v = item[key]
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
-                raise ParameterError(f"{key} must be a positive number, got {v!r}")
-            options[key] = float(v)
-    if "ghost" in item:
-        if not isinstance(item["ghost"], bool):
-            raise ParameterError(f"ghost must be true or false, got {item['ghost']!r}")
-        options["ghost"] = item["ghost"]
-    value = item[shapes[0]]
-    if shapes[0] == "circle":
-        if not isinstance(value, list) or len(value) != 3:
-            raise ParameterError(f"a circle must be [x, y, r], got {value!r}")
-        return LightSource.circle(*value, **options)
-    if shapes[0] == "polygon":
-        if not isinstance(value, list):
-            raise ParameterError(f"a polygon must be [[x, y], ...], got {value!r}")
-        return LightSource.polygon(value, **options)
-    return LightSource.track(value, **options)
-
-
-def _check_on_sensor(source: LightSource, sensor_size: SensorSize) -> None:
-    width, height = sensor_size
-    pts = np.array(source.points) if source.kind == "polygon" else source.table[:, 1:3]
-    pts = pts[np.isfinite(pts).all(axis=1)]
-    off = (pts[:, 0] < -0.5) | (pts[:, 0] > width - 0.5) | (pts[:, 1] < -0.5)
-    off |= pts[:, 1] > height - 0.5
-    if off.any():
-        x, y = pts[np.argmax(off)]
-        what = "a vertex" if source.kind == "polygon" else "its centre"
-        raise ParameterError(f"{what} ({x:g}, {y:g}) lies off the {width}x{height} sensor")
-
-
-def load_lights(path: str | os.PathLike[str], sensor_size: SensorSize | None = None) -> Lights:
-    """Read a light-source annotation (JSON).
-
-    The file holds ``{"sources": [...]}`` and optionally ``margin_px``,
-    ``halo_factor``, ``ghost_factor``, ``note``, ``score_background``
-    (false: the background is sensor noise, left out of the combined score),
-    ``sensor_size`` ([W, H],
-    checked against ``sensor_size``) and provenance (``recording``, ``date``,
-    ``method``, ``checks``). Each source is one of ``{"circle": [x, y, r]}``,
-    ``{"polygon": [[x, y], ...]}`` or ``{"track": [[t_us, x, y, r], ...]}``
-    (linear in time, held before its first and after its last row), with
-    optional ``name``, ``halo_outer_px``, ``ghost_radius_px``, ``ghost``
-    (false: no ghost region) and, for a track, ``response_us`` (how long its
-    pixels fire on after it has passed; see :class:`LightSource`). Pixel
-    coordinates: pixel ``(x, y)`` has its centre at ``(x, y)``.
-
-    Raises
-    ------
-    AnnotationError
-        Naming the file: missing, not JSON, an unknown key, a bad shape, a
-        centre or vertex off the sensor, a sensor size that differs.
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> p = pathlib.Path(tempfile.mkdtemp()) / "lights.json"
-    >>> _ = p.write_text('{"sources": [{"circle": [10, 5, 3]}, {"track": [[0, 1, 1, 1]]}]}')
-    >>> [s.kind for s in load_lights(p, (20, 10)).sources]
-    ['circle', 'track']
-    """
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise AnnotationError(path, "no such file") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise AnnotationError(path, f"is not a JSON file of light sources ({exc})") from None
-    if not isinstance(data, dict) or "sources" not in data:
-        raise AnnotationError(path, 'must hold an object {"sources": [...], ...}')
-    unknown = set(data) - _TOP_KEYS
-    if unknown:
-        raise AnnotationError(path, f"unknown keys {sorted(unknown)}; valid: {sorted(_TOP_KEYS)}")
-    if not isinstance(data["sources"], list) or not data["sources"]:
-        raise AnnotationError(path, "'sources' must be a non-empty list")
-    size = None if sensor_size is None else check_sensor_size(sensor_size)
-    if "sensor_size" in data:
-        given = data["sensor_size"]
-        if not (isinstance(given, list) and len(given) == 2):
-            raise AnnotationError(path, f"sensor_size must be [width, height], got {given!r}")
-        if size is not None and tuple(given) != size:
-            raise AnnotationError(
-                path, f"annotates a {given[0]}x{given[1]} sensor; the recording is "
-                f"{size[0]}x{size[1]}"
-            )  # fmt: skip
-    sources = []
-    for i, item in enumerate(data["sources"]):
-        try:
-            source = _source_from_json(item)
-            if size is not None:
-                _check_on_sensor(source, size)
-        except ParameterError as exc:
-            raise AnnotationError(path, f"source {i}: {exc}") from None
-        sources.append(source)
-    keys = ("margin_px", "halo_factor", "ghost_factor", "note", "score_background")
-    options = {k: data[k] for k in keys if k in data}
-    try:
-        return Lights(tuple(sources), **options)
-    except (ParameterError, TypeError) as exc:
-        raise AnnotationError(path, str(exc)) from None
-
-
-def bundled_lights(recording: str | os.PathLike[str] | None = None) -> Path | list[str]:
-    """The annotation bundled for a real recording (by file name or stem), or their names.
-
-    Annotations of the recordings in the project's real test set live in
-    ``edeflare/assets/lights/`` (with a README on how they were made and checked).
-
-    Examples
-    --------
-    >>> bundled_lights()
-    ['davis346_flicker_lamps', 'prophesee_gen3_rotating_light']
-    >>> bundled_lights("some/where/davis346_flicker_lamps.aedat4").name
-    'davis346_flicker_lamps.json'
-    """
-    folder = Path(__file__).resolve().parents[1] / "assets" / "lights"
-    names = sorted(p.stem for p in folder.glob("*.json"))
-    if recording is None:
-        return names
-    stem = Path(recording).name.split(".")[0]
-    if stem not in names:
-        raise ParameterError(f"no bundled annotation for {stem!r}; bundled: {', '.join(names)}")
-    return folder / f"{stem}.json"
-
-
-def detect_lights(
-    events: np.ndarray,
-    sensor_size: SensorSize,
-    window_us: int = 20_000,
-    *,
-    max_sources: int = 1,
-    **options: Any,
-) -> Lights:
-    """Detect the light sources window by window: the brightest compact regions.
-
-    Each aligned window of ``window_us`` goes through
-    :func:`edeflare.realworld.detect_light_source` (``max_sources`` regions,
-    brightest first); the ``k``-th detection of each window makes the
-    ``k``-th source, constant within the window (:meth:`LightSource.steps`).
-    ``options`` go to :class:`Lights` (``margin_px``, ``halo_factor``,
-    ``ghost_factor``).
-
-    Raises
-    ------
-    ParameterError
-        No events, or no light found in any window.
-
-    Examples
-    --------
-    >>> from edeflare.events import make_events
-    >>> yy, xx = np.mgrid[:5, :5]
-    >>> n = xx.size * 10
-    >>> ev = make_events(np.arange(n) * 10, np.tile(xx.ravel() + 20, 10),
-    ...                  np.tile(yy.ravel() + 30, 10), np.ones(n, int))
-    >>> src = detect_lights(ev, (64, 48), 1_000).sources[0]
-    >>> src.kind, [round(float(v)) for v in src.table[0, 1:3]]
-    ('steps', [22, 32])
-    """
-    from ..realworld import detect_light_source
-
-    check_events(events, sensor_size)
-    size = check_sensor_size(sensor_size)
-    if events.size == 0:
-        raise ParameterError("no events: no light source to detect")
-    t = events["t"]
-    start = window_start_for(int(t[0]), window_us)
-    n_windows = (int(t[-1]) - start) // window_us + 1
-    edges = np.searchsorted(t, start + window_us * np.arange(n_windows + 1), side="left")
-    rows = np.full((max_sources, n_windows, 4), np.nan)
-    rows[:, :, 0] = start + window_us * np.arange(n_windows)
-    found = 0
-    for w in range(n_windows):
-        chunk = events[edges[w] : edges[w + 1]]
-        if chunk.size == 0:
-            continue
-        try:
-            circles = detect_light_source(chunk, size, max_sources=max_sources)
-        except ParameterError:
-            continue
-        for k, c in enumerate(circles):
-            rows[k, w, 1:] = (c.cx, c.cy, c.r)
-            found += 1
-    if not found:
-        raise ParameterError(
-            "no light source detected in any window; annotate the lights (--lights JSON)"
-        )
-    sources = tuple(
-        LightSource.steps(rows[k], name=f"detected-{k}")
-        for k in range(max_sources)
-        if np.isfinite(rows[k, :, 1]).any()
-    )
-    return Lights(sources, note=f"detected per {window_us} us window", **options)
-
 
 @dataclasses.dataclass(frozen=True)
 class Regions:
@@ -559,6 +126,7 @@ def classify_events(events: np.ndarray, lights: Lights, sensor_size: SensorSize)
     Examples
     --------
     >>> from edeflare.events import make_events
+    >>> from edeflare.lights import LightSource
     >>> src = LightSource.track([[0, 10, 10, 2], [100, 30, 10, 2]])
     >>> ev = make_events([0, 100], [18, 30], [10, 10], [1, 1])  # 8 px off, then on it
     >>> classify_events(ev, Lights((src,)), (64, 48)).labels.tolist()
@@ -577,7 +145,7 @@ def classify_events(events: np.ndarray, lights: Lights, sensor_size: SensorSize)
         dist, cx, cy, r = s.distance(x, y, t)
         present = np.isfinite(cx)
         if s.kind == "polygon":
-            from ..realworld.geometry import Polygon
+            from ..lights import Polygon
 
             inside = Polygon(s.points).contains(x, y)
         else:
@@ -686,6 +254,7 @@ def score_events(
     Examples
     --------
     >>> from edeflare.events import make_events
+    >>> from edeflare.lights import Lights, LightSource
     >>> ev = make_events([0, 1, 2, 3], [10, 15, 30, 49], [10, 10, 10, 39], [1, 1, 1, 1])
     >>> lights = Lights((LightSource.circle(10, 10, 2),), ghost_factor=1.0)
     >>> (s,) = score_events(ev, {"drop-halo": ev[[0, 2, 3]]}, lights, (60, 50))

@@ -40,10 +40,10 @@ from ..events import (
     concat_events,
     select_events,
 )
+from ..lights.cells import covered_us
 from ..methods.base import Streamer
 from ..methods.windows import WindowStreamer
 from ..rules import RULES, RuleSet, WindowContext
-from ..rules.ghost import covered_us
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes

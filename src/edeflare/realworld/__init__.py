@@ -19,11 +19,12 @@ datasets (:mod:`edeflare.data.pairs`), one step per function:
    offset_us``), the peak correlation, the best correlation at any clearly
    different lag, and a confidence that falls to 0 when these are equal (a
    periodic strobe searched over more than half its period is ambiguous).
-2. **Reference cleaning.** Light sources are :class:`Circle` and
-   :class:`Polygon` shapes, parsed from ``circle:CX,CY,R`` /
-   ``polygon:X1,Y1,...`` (:func:`parse_light`), read from JSON
-   (:func:`load_lights`) or found as the brightest compact region of the
-   event-density map (:func:`detect_light_source`). :func:`clean_reference`
+2. **Reference cleaning.** Light sources (:mod:`edeflare.lights`: fixed
+   ones, a disc or a polygon) are parsed from ``circle:CX,CY,R`` /
+   ``polygon:X1,Y1,...`` (:func:`~edeflare.lights.parse_lights`), read from
+   JSON (:func:`~edeflare.lights.load_lights`) or found as the brightest
+   compact region of the event-density map
+   (:func:`~edeflare.lights.detect_light_source`). :func:`clean_reference`
    removes the events of the glare zone (:func:`glare_mask`: within
    ``glare_radius_px`` of a source but outside every source) and keeps the
    sources themselves.
@@ -57,18 +58,7 @@ from __future__ import annotations
 from ._common import LOW_CONFIDENCE, PairingError
 from ._common import MANIFEST_FORMAT as MANIFEST_FORMAT  # public, not in __all__
 from .align import Alignment, estimate_offset
-from .geometry import (
-    Circle,
-    LightSource,
-    Polygon,
-    clean_reference,
-    detect_light_source,
-    glare_mask,
-    light_mask,
-    load_lights,
-    parse_light,
-    parse_lights,
-)
+from .geometry import clean_reference, glare_mask
 from .noise import NoiseEstimate, draw_noise, estimate_background_rate, inject_noise
 from .pipeline import PairConfig, PairReport, pair_recordings
 from .plot import plot_alignment
@@ -77,27 +67,19 @@ from .signature import RecordingScan, Signature, polarity_signature, scan_record
 __all__ = [
     "LOW_CONFIDENCE",
     "Alignment",
-    "Circle",
-    "LightSource",
     "NoiseEstimate",
     "PairConfig",
     "PairReport",
     "PairingError",
-    "Polygon",
     "RecordingScan",
     "Signature",
     "clean_reference",
-    "detect_light_source",
     "draw_noise",
     "estimate_background_rate",
     "estimate_offset",
     "glare_mask",
     "inject_noise",
-    "light_mask",
-    "load_lights",
     "pair_recordings",
-    "parse_light",
-    "parse_lights",
     "plot_alignment",
     "polarity_signature",
     "scan_recording",

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import EdeflareError, ParameterError
-from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, count_map
+from ..events import SensorSize, check_sensor_size
 
 MANIFEST_FORMAT = "edeflare-pairs/1"
 LOW_CONFIDENCE = 0.1
@@ -58,17 +58,3 @@ def _pixel_mask_of(events: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return mask[events["y"], events["x"]]
 
 
-def _count_map(data: np.ndarray, sensor_size: SensorSize | None) -> np.ndarray:
-    """``(H, W)`` float64 counts from events (needs ``sensor_size``) or a 2-D map."""
-    if isinstance(data, np.ndarray) and data.dtype == EVENT_DTYPE:
-        if sensor_size is None:
-            raise ParameterError("sensor_size is required with events")
-        return count_map(data, sensor_size).astype(float)
-    counts = np.asarray(data, dtype=np.float64)
-    if counts.ndim != 2:
-        raise ParameterError(f"expected events or an (H, W) count map, got shape {counts.shape}")
-    if sensor_size is not None and check_sensor_size(sensor_size) != counts.shape[::-1]:
-        raise ParameterError(f"count map {counts.shape} (H, W) does not match sensor {sensor_size}")
-    if not np.isfinite(counts).all() or (counts < 0).any():
-        raise ParameterError("count map must hold finite non-negative values")
-    return counts

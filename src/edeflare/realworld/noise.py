@@ -11,7 +11,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size, merge_events
-from ._common import _check_mask, _count_map, _positive_int
+from ..lights.detect import count_map_of
+from ._common import _check_mask, _positive_int
 
 
 @dataclass(frozen=True)
@@ -90,10 +91,10 @@ def estimate_background_rate(
     """
     duration_us = _positive_int("duration_us", duration_us)
     if isinstance(data, np.ndarray) and data.dtype == EVENT_DTYPE and on_counts is None:
-        counts = _count_map(data, sensor_size)
-        on_counts = _count_map(data[data["p"] == 1], sensor_size)
+        counts = count_map_of(data, sensor_size)
+        on_counts = count_map_of(data[data["p"] == 1], sensor_size)
     else:
-        counts = _count_map(data, sensor_size)
+        counts = count_map_of(data, sensor_size)
     height, width = counts.shape
     if on_counts is not None:
         on_counts = np.asarray(on_counts, dtype=np.float64)

@@ -20,6 +20,7 @@ from ..events import SensorSize, center_crop, check_sensor_size, merge_events
 from ..io import EventSource, open_events, write_events
 from ..io._atomic import atomic_path
 from ..io.sequence import file_sha256, write_sequence
+from ..lights import Circle, LightSource, Polygon, Shape, detect_light_source, light_mask
 from ._common import (
     LOW_CONFIDENCE,
     MANIFEST_FORMAT,
@@ -29,14 +30,7 @@ from ._common import (
     _progress,
 )
 from .align import Alignment, estimate_offset
-from .geometry import (
-    Circle,
-    LightSource,
-    Polygon,
-    detect_light_source,
-    glare_mask,
-    light_mask,
-)
+from .geometry import glare_mask
 from .noise import NoiseEstimate, draw_noise, estimate_background_rate
 from .plot import plot_alignment
 from .signature import RecordingScan, scan_recording
@@ -102,7 +96,7 @@ class PairConfig:
     max_offset_us: int = 1_000_000
     expected_offset_us: int | None = None
     min_confidence: float = 0.0
-    lights: tuple[LightSource, ...] = ()
+    lights: tuple[LightSource | Shape, ...] = ()
     detect_light: bool = False
     glare_radius_px: float = 40.0
     noise_rate_hz: float | None = None
@@ -134,10 +128,14 @@ class PairConfig:
             raise ParameterError(f"max_offset_us must be >= 0, got {self.max_offset_us}")
         if not 0 <= self.min_confidence <= 1:
             raise ParameterError(f"min_confidence must lie in [0, 1], got {self.min_confidence}")
+        shapes = []
         for light in self.lights:
+            if isinstance(light, LightSource):
+                light = light.shape  # a fixed source's outline (a moving one has none)
             if not isinstance(light, (Circle, Polygon)):
-                raise ParameterError(f"lights must be Circle or Polygon, got {light!r}")
-        object.__setattr__(self, "lights", tuple(self.lights))
+                raise ParameterError(f"lights must be light sources, got {light!r}")
+            shapes.append(light)
+        object.__setattr__(self, "lights", tuple(shapes))
         if not math.isfinite(self.glare_radius_px) or self.glare_radius_px < 0:
             raise ParameterError(f"glare_radius_px must be >= 0, got {self.glare_radius_px}")
         if self.noise_rate_hz is not None and (
@@ -178,7 +176,7 @@ class PairReport:
 
     name: str
     alignment: Alignment
-    lights: tuple[LightSource, ...]
+    lights: tuple[Shape, ...]
     noise_rate_hz: float
     noise: NoiseEstimate | None
     files: list[Path]

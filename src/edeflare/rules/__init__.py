@@ -259,8 +259,8 @@ def reference_markdown() -> str:
 
     Examples
     --------
-    >>> reference_markdown().splitlines()[0]
-    '# The mask model\\'s rules'
+    >>> reference_markdown().splitlines()[0].startswith("# The mask model")
+    True
     """
     lines = [
         "# The mask model's rules",

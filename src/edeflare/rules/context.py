@@ -26,7 +26,7 @@ class WindowContext:
     sensor_size : (width, height)
     span_us : int
         The part of the window the stream covers (µs): the lights' rates are counted
-        over it (:func:`~edeflare.rules.ghost.covered_us`).
+        over it (:func:`edeflare.lights.cells.covered_us`).
     support : numpy.ndarray or None
         Each event's count of other events in its 5x5 square, where the network's
         per-event refinement counted it (:func:`~edeflare.models.kernels.event_support`).
@@ -53,8 +53,8 @@ class WindowContext:
 
     @cached_property
     def lights(self) -> np.ndarray:
-        """The window's light cells (:func:`~edeflare.rules.halo.window_lights`)."""
-        from .halo import window_lights
+        """The window's light cells (:func:`edeflare.lights.window_lights`)."""
+        from ..lights.cells import window_lights
 
         return window_lights(self.events, self.sensor_size, self.span_us)
 

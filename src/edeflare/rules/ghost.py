@@ -32,6 +32,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..events import SensorSize, check_sensor_size
+from ..lights.cells import light_cells
 from . import Rule, knob
 from .context import WindowContext
 
@@ -39,9 +40,7 @@ __all__ = [
     "GHOST_FACTORS",
     "GHOST_MAX_NEIGHBOURS",
     "GHOST_RULE",
-    "LIGHT_RATE",
     "GhostParams",
-    "covered_us",
     "ghost_cells",
     "in_ghost_prior",
     "light_cells",
@@ -53,9 +52,6 @@ GHOST_FACTORS: tuple[float, ...] = (
 """Ghost position factors ``k`` (ghost at ``c + k (L - c)``): across the centre from half
 to five times the source's distance, and 0.4-0.6 of the way towards it."""
 
-LIGHT_RATE = 0.25
-"""Events per pixel and millisecond from which a cell counts as a light."""
-
 GHOST_MAX_NEIGHBOURS = 4
 """The prior covers an event in its cells only where the event's 3x3 neighbourhood holds
 at most this many events of the window, the event itself included. Chosen on the ghost
@@ -63,62 +59,6 @@ benchmark's set and the real recordings (``experiments/ghosts/sparse_gate.py``):
 shift of 1 it keeps all of the simulated ghosts the ungated prior drops (0.873 against
 0.874) and two thirds of the DAVIS lamps' background it cost (63.5 % kept against 61.0 %;
 65.1 % without the prior)."""
-
-
-def covered_us(events: np.ndarray, start_us: int, window_us: int) -> int:
-    """How much of a window its events cover: the time the lights' rates are counted over.
-
-    A window at a stream's start or end (or one of the second windowing, which starts
-    before the stream) holds only part of its span: over the whole window, a light that
-    fired through the part would seem dim and go unseen, and with it every prior. The
-    covered part runs from the later of the window's start and its first event to the
-    earlier of its end and its last event; at least a quarter of the window, so that a
-    burst of a few events is not a light.
-
-    Examples
-    --------
-    >>> from edeflare.events import make_events
-    >>> ev = make_events([1_000, 4_999], [0, 1], [0, 0], [1, 1])  # a stream ending at 5 ms
-    >>> covered_us(ev, 0, 20_000), covered_us(ev[:1], 0, 20_000), covered_us(ev[:0], 0, 20_000)
-    (5000, 5000, 20000)
-    >>> covered_us(make_events([0, 19_999], [0, 1], [0, 0], [1, 1]), 0, 20_000)
-    20000
-    """
-    if events.size == 0:
-        return int(window_us)
-    lo = max(int(start_us), int(events["t"][0]))
-    hi = min(int(start_us) + int(window_us), int(events["t"][-1]) + 1)
-    return int(min(window_us, max(hi - lo, window_us // 4)))
-
-
-def light_cells(
-    events: np.ndarray, sensor_size: SensorSize, window_us: int, *, cell: int = 8
-) -> np.ndarray:
-    """The cells (``cell`` x ``cell`` pixels) of a window that are lights.
-
-    A cell is a light when it fires at least :data:`LIGHT_RATE` events per pixel
-    and millisecond over ``window_us`` (the window, or the part of it the events cover:
-    :func:`covered_us`).
-
-    Examples
-    --------
-    >>> from edeflare.events import make_events
-    >>> n = 400   # 400 events in the top-left 8x8 cell in 20 ms: 0.31 per px and ms
-    >>> ev = make_events(np.arange(n) * 50, np.arange(n) % 8, np.arange(n) // 8 % 8,
-    ...                  np.ones(n))
-    >>> light_cells(ev, (32, 16), 20_000).astype(int).tolist()
-    [[1, 0, 0, 0], [0, 0, 0, 0]]
-    """
-    width, height = check_sensor_size(sensor_size)
-    if window_us <= 0:
-        raise ValueError(f"window_us must be positive, got {window_us}")
-    if cell < 1:
-        raise ValueError(f"cell must be >= 1, got {cell}")
-    h, w = -(-height // cell), -(-width // cell)
-    counts = np.bincount(
-        (events["y"] // cell).astype(np.int64) * w + events["x"] // cell, minlength=h * w
-    ).reshape(h, w)
-    return counts >= LIGHT_RATE * cell * cell * window_us / 1000.0
 
 
 def ghost_cells(

@@ -1,6 +1,6 @@
 """Where a window's isolated events crowd: scattered light, not background activity.
 
-A night lamp too slow for the light test (:func:`~edeflare.rules.halo.window_lights`)
+A night lamp too slow for the light test (:func:`~edeflare.lights.cells.window_lights`)
 still scatters its light into isolated events, along its streaks and rings, around it.
 A sensor's background activity fires isolated events too, but evenly over the sensor.
 :func:`crowded_isolated` tells the two apart by place: an isolated event crowds where
@@ -201,7 +201,7 @@ def scatter_field(
         bool, one per event: :func:`crowded_isolated`'s answer.
     span_us : int, optional
         The time the window's events cover, in µs (default: from its first event to its
-        last; :func:`~edeflare.rules.ghost.covered_us` is what the model passes).
+        last; :func:`~edeflare.lights.cells.covered_us` is what the model passes).
     cell, reach : int
         As for :func:`crowded_isolated`.
 

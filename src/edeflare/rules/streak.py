@@ -9,7 +9,7 @@ A mask model trained on sparse scattered light keeps them, because dense and
 connected is what a scene edge looks like to a cell.
 
 This prior finds them from the geometry alone. Around each light of the window (the
-test of :func:`~edeflare.rules.halo.light_pixels`: its centre, the farthest of its
+test of :func:`~edeflare.lights.cells.light_pixels`: its centre, the farthest of its
 pixels from the centre, its radius ``R``) the saturated pixels (:data:`MIN_PIXEL_EVENTS`
 events or more) out to :data:`STREAK_EXTENT` radii are binned by angle
 (:data:`ANGLE_BINS` around) and by distance (rings of ``RADIAL_BIN_PX``), starting
@@ -55,9 +55,9 @@ import numpy as np
 from scipy import ndimage
 
 from ..events import SensorSize, check_sensor_size
+from ..lights.cells import _lights
 from . import Rule, knob
 from .context import WindowContext
-from .halo import _lights
 
 __all__ = [
     "ANGLE_BINS",
@@ -328,7 +328,7 @@ def in_streak_prior(
     lights: np.ndarray | None = None,
 ) -> np.ndarray:
     """Whether each event of a window lies on a diffraction spike of one of its lights
-    (``lights``: the window's :func:`~edeflare.rules.ghost.light_cells`, when
+    (``lights``: the window's :func:`~edeflare.lights.cells.light_cells`, when
     already counted).
 
     Examples

@@ -1,0 +1,48 @@
+"""Light sources: one type, one JSON form and one detector for the whole toolkit.
+
+- :class:`LightSource` (a disc, a polygon, a moving disc or a piecewise constant
+  one) and :class:`Lights` (a recording's sources and the regions around them),
+  read and written by :func:`load_lights` / :func:`save_lights`;
+  :class:`Circle` / :class:`Polygon` are a fixed source's outline
+  (:attr:`LightSource.shape`);
+- :func:`detect_light_source` (the brightest compact regions of the event
+  density) and :func:`detect_lights` (the same, window by window);
+- :func:`window_lights`: the cells of a window that hold a light, the cheap test
+  a mask model's rules (:mod:`edeflare.rules`) make in every window.
+
+The scorer (:mod:`edeflare.eval.score`), the real-capture pairing
+(:mod:`edeflare.realworld`) and the model's rules all use these.
+
+Examples
+--------
+>>> from edeflare.lights import LightSource, parse_lights
+>>> (lamp,) = parse_lights(["circle:320,240,15"])
+>>> lamp == LightSource.circle(320, 240, 15)
+True
+"""
+
+from __future__ import annotations
+
+from .cells import window_lights
+from .detect import count_map_of, detect_light_source, detect_lights
+from .shapes import Circle, Polygon, Shape, light_mask, parse_light
+from .source import Lights, LightSource, bundled_lights, load_lights, parse_lights, save_lights
+
+__all__ = [
+    "Circle",
+    "LightSource",
+    "Lights",
+    "Polygon",
+    "Shape",
+    "bundled_lights",
+    "count_map_of",
+    "detect_light_source",
+    "detect_lights",
+    "light_mask",
+    "load_lights",
+    "parse_light",
+    "parse_lights",
+    "save_lights",
+    "window_lights",
+]
+

@@ -1,0 +1,78 @@
+"""One idea of a light: the type, its JSON form (old layouts too) and the detector."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from edeflare.errors import AnnotationError, ParameterError
+from edeflare.lights import (
+    Circle,
+    LightSource,
+    Lights,
+    Polygon,
+    bundled_lights,
+    detect_light_source,
+    load_lights,
+    save_lights,
+)
+from edeflare.realworld import PairConfig
+
+
+def test_save_then_load_gives_the_same_lights(tmp_path):
+    lights = Lights(
+        (
+            LightSource.circle(10, 5, 3, name="lamp", halo_outer_px=40.0),
+            LightSource.polygon([[0, 0], [4, 0], [4, 2]], ghost=False),
+            LightSource.track([[0, 1, 1, 1], [100, 5, 1, 2]], response_us=50.0),
+        ),
+        halo_factor=8.0,
+        note="by hand",
+    )
+    path = tmp_path / "lights.json"
+    save_lights(path, lights, sensor_size=[20, 10], method="by hand")
+    back = load_lights(path, (20, 10))
+    assert back == lights
+    assert json.loads(path.read_text())["method"] == "by hand"
+    with pytest.raises(AnnotationError, match=r"lights\.json: annotates a 20x10 sensor"):
+        load_lights(path, (64, 48))
+
+
+def test_the_pairing_layout_of_lights_loads_as_fixed_sources(tmp_path):
+    path = tmp_path / "old.json"
+    path.write_text(
+        json.dumps({"lights": [{"type": "circle", "cx": 3, "cy": 4, "r": 2}, "polygon:0,0,4,0,4,4"]})
+    )
+    lights = load_lights(path)
+    assert [s.kind for s in lights.sources] == ["circle", "polygon"]
+    assert lights.sources[0].shape == Circle(3.0, 4.0, 2.0)
+    assert lights.sources[1].shape == Polygon(((0.0, 0.0), (4.0, 0.0), (4.0, 4.0)))
+    assert lights.halo_factor == 6.0  # the scorer's default regions
+
+
+def test_a_moving_source_has_no_outline_and_the_pairing_says_so():
+    track = LightSource.track([[0, 1, 1, 1], [100, 5, 1, 1]])
+    with pytest.raises(ParameterError, match="a track light source moves"):
+        track.shape
+    config = PairConfig(lights=(LightSource.circle(5, 5, 2),))
+    assert config.lights == (Circle(5.0, 5.0, 2.0),)  # the pairing works on outlines
+    with pytest.raises(ParameterError, match="moves"):
+        PairConfig(lights=(track,))
+
+
+def test_every_bundled_annotation_loads_on_its_sensor():
+    sizes = {"davis346_flicker_lamps": (346, 260), "prophesee_gen3_rotating_light": (640, 480)}
+    assert bundled_lights() == sorted(sizes)
+    for name, size in sizes.items():
+        lights = load_lights(bundled_lights(name), size)
+        assert lights.sources and all(np.isfinite(s.table[:, 3]).any() for s in lights.sources)
+
+
+def test_the_detector_finds_a_disc_where_it_is():
+    counts = np.zeros((40, 60))
+    yy, xx = np.mgrid[:40, :60]
+    counts[(xx - 42) ** 2 + (yy - 12) ** 2 <= 16] = 50.0
+    (found,) = detect_light_source(counts)
+    assert abs(found.cx - 42) < 0.5 and abs(found.cy - 12) < 0.5 and 4 <= found.r <= 6
