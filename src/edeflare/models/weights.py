@@ -35,6 +35,7 @@ __all__ = [
     "read_metadata",
     "read_tensors",
     "save_model",
+    "write_tensors",
     "write_weights",
 ]
 
@@ -121,6 +122,23 @@ def write_weights(
     ({'my_card': '{"n": 1}'}, ['bias', 'weight'])
     """
     tensors = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    write_tensors(path, tensors, key, card)
+
+
+def write_tensors(
+    path: str | os.PathLike[str], tensors: dict[str, torch.Tensor], key: str, card: dict[str, Any]
+) -> None:
+    """Write ``tensors`` to a ``.safetensors`` file, atomically, with ``card`` as JSON under
+    metadata ``key`` (what :func:`write_weights` does with a model's state).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "t.safetensors"
+    >>> write_tensors(p, {"w": torch.zeros(2, dtype=torch.float16)}, "my_card", {"n": 2})
+    >>> read_metadata(p), read_tensors(p)["w"].dtype
+    ({'my_card': '{"n": 2}'}, torch.float16)
+    """
     with atomic_path(Path(path)) as tmp:
         save_file(tensors, str(tmp), metadata={key: json.dumps(card)})
 
