@@ -143,3 +143,14 @@ def test_the_commands_user_errors_are_one_line(run_weights, tmp_path, capsys, ex
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["night", "eflare", "paper", "firenet"])
+def test_every_bundled_card_names_package_commands_only(name):
+    """A bundled model rebuilds from the package's commands (no script outside it)."""
+    from edeflare.models.weights import read_metadata
+
+    card = json.loads(next(iter(read_metadata(bundled_weights(name)).values())))
+    text = f"{card['command']} {card['data']} {card.get('notes', '')}"
+    assert "experiments/" not in text and "python experiments" not in text
+    assert card["command"].startswith(("edeflare ", "python -m edeflare."))
