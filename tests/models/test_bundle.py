@@ -106,9 +106,13 @@ def test_a_reconstructors_card_is_set_the_same_way(tmp_path):
         bundle_weights(src, out, {"keep_threshold": 0.4})
 
 
-def test_card_fields_are_json_where_they_parse():
-    fields = parse_card_fields(["seed=3", "notes=night, day", "seed2=null", 'data="3"', "x="])
-    assert fields == {"seed": 3, "notes": "night, day", "seed2": None, "data": "3", "x": ""}
+def test_card_fields_are_json_except_text_fields_which_are_as_written():
+    fields = parse_card_fields(["seed=3", "notes=night, day", "other=null", 'data="3"', "x="])
+    assert fields == {"seed": 3, "notes": "night, day", "other": None, "data": "3", "x": ""}
+    fields = parse_card_fields(["data=3", 'command={"a": 1}', "notes=[1,2]", "seed=null"])
+    assert fields == {"data": "3", "command": '{"a": 1}', "notes": "[1,2]", "seed": None}
+    recon = parse_card_fields(['data={"clips": 256}', "iterations=5"], ReconCard)
+    assert recon == {"data": '{"clips": 256}', "iterations": 5}
     with pytest.raises(ParameterError, match="KEY=VALUE"):
         parse_card_fields(["=3"])
 

@@ -35,9 +35,9 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="set a card field (repeatable); VALUE is read as JSON where it parses "
-        "(keep_threshold=0.4, seed=0, metrics='{...}'), else as a string "
-        "(data='MIX = ...'); unknown fields and wrong types are errors",
+        help="set a card field (repeatable): text fields (command, data, notes) as written, "
+        "the others read as JSON (keep_threshold=0.4, seed=0, metrics='{...}'); unknown "
+        "fields and wrong types are errors",
     )
     p.add_argument(
         "--metrics",
@@ -52,13 +52,16 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Set the card's fields, write OUT, print the new card."""
-    from ..models.bundle import bundle_weights, parse_card_fields
+    from ..models.bundle import bundle_weights
     from ..models.infer import resolve_weights
 
-    fields = parse_card_fields(args.card)
     metrics = _metrics(args.metrics) if args.metrics is not None else None
     card = bundle_weights(
-        resolve_weights(args.weights), args.out, fields, metrics=metrics, half=args.half
+        resolve_weights(args.weights),
+        args.out,
+        assignments=args.card,
+        metrics=metrics,
+        half=args.half,
     )
     print(f"wrote {args.out}")
     print(json.dumps(card, indent=1))

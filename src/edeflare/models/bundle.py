@@ -38,19 +38,26 @@ _MODEL_KEY = "edeflare_card"
 _RECON_KEY = "edeflare_recon_card"  # edeflare.recon.weights
 
 
-def parse_card_fields(pairs: Sequence[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` strings as card fields: each value parsed as JSON where it parses,
-    else kept as the string.
+def parse_card_fields(pairs: Sequence[str], card_type: type = ModelCard) -> dict[str, Any]:
+    """``KEY=VALUE`` strings (as on the command line) as the fields of a ``card_type``.
+
+    A text field (``command``, ``data``, ``notes``) takes VALUE as written (a
+    JSON string literal is unquoted); any other takes VALUE read as JSON where
+    it parses, else the string (which :func:`bundle_weights` then refuses for a
+    number field, saying so).
 
     Examples
     --------
-    >>> parse_card_fields(["keep_threshold=0.4", "notes=a mask model", 'metrics={"a": 1}'])
-    {'keep_threshold': 0.4, 'notes': 'a mask model', 'metrics': {'a': 1}}
+    >>> parse_card_fields(["keep_threshold=0.4", "seed=null", 'metrics={"a": 1}'])
+    {'keep_threshold': 0.4, 'seed': None, 'metrics': {'a': 1}}
+    >>> parse_card_fields(['data={"sequences": 3}', "notes=a mask model", 'command="x"'])
+    {'data': '{"sequences": 3}', 'notes': 'a mask model', 'command': 'x'}
     >>> parse_card_fields(["seed"])  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
     edeflare.errors.ParameterError: card fields look like KEY=VALUE (...), got 'seed'
     """
+    hints = typing.get_type_hints(card_type)
     fields: dict[str, Any] = {}
     for pair in pairs:
         key, sep, text = pair.partition("=")
@@ -59,9 +66,12 @@ def parse_card_fields(pairs: Sequence[str]) -> dict[str, Any]:
                 f"card fields look like KEY=VALUE (e.g. keep_threshold=0.4), got {pair!r}"
             )
         try:
-            fields[key] = json.loads(text)
+            value = json.loads(text)
         except json.JSONDecodeError:
-            fields[key] = text
+            value = text
+        if hints.get(key) is str and not isinstance(value, str):
+            value = text  # a text field holds what was written, JSON-like or not
+        fields[key] = value
     return fields
 
 
@@ -70,6 +80,7 @@ def bundle_weights(
     out: str | os.PathLike[str],
     fields: Mapping[str, Any] | None = None,
     *,
+    assignments: Sequence[str] = (),
     metrics: Mapping[str, Any] | None = None,
     half: bool = False,
 ) -> dict[str, Any]:
@@ -85,6 +96,9 @@ def bundle_weights(
         Card fields to set, e.g. ``{"keep_threshold": 0.4, "data": "..."}``.
         Unknown fields and values of the wrong type are errors; an int is
         accepted for a float field.
+    assignments : sequence of str
+        More fields as ``KEY=VALUE`` strings, as the command line gives them
+        (:func:`parse_card_fields` for the card's type), set after ``fields``.
     metrics : mapping, optional
         Merged into the card's ``metrics`` (after ``fields``).
     half : bool
@@ -131,7 +145,8 @@ def bundle_weights(
         card = json.loads(meta[key])
     except json.JSONDecodeError as exc:
         raise WeightsError(f"{path}: the card is not JSON ({exc})") from None
-    card = _with_fields(card_type, card, dict(fields or {}))
+    changes = {**(fields or {}), **parse_card_fields(assignments, card_type)}
+    card = _with_fields(card_type, card, changes)
     if metrics:
         card["metrics"] = {**card.get("metrics", {}), **dict(metrics)}
     card = card_type.from_dict(card).to_dict()  # type: ignore[attr-defined]
