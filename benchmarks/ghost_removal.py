@@ -13,9 +13,10 @@ kind; one huge light can hold most of the pooled events) and the harmonic mean o
 three. The reference is dv-processing's ``FastDecayNoiseFilter`` (dv-fastdecay), the
 filter users already run, which removes the ghost ring of
 ``../shared/reference/real_flare_example.png``. The row ``model, card before`` is the
-default with the card it had before the sixth session of 2026-11-26 (threshold 0.5,
-halo and ghost shifts 1, no spike prior, no light-free or far shift;
-``experiments/streaks``). Prints the table and writes ``results/ghost_removal.json``.
+default with the card it had before its threshold and shifts were raised on 2026-11-26
+(threshold 0.5, halo and ghost shifts 1, no spike prior, no light-free or far shift; the
+study "streaks" of ``docs/studies.md``). Prints the table and writes
+``results/ghost_removal.json``.
 Run::
 
     python benchmarks/ghost_removal.py [--model WEIGHTS] [--data DIR]
@@ -43,7 +44,7 @@ from edeflare.sim.sensing import in_ghosts, source_track
 ROWS = {
     "raw": ("raw", {}),
     "model": ("model", {}),
-    # the default's card before the sixth session of 2026-11-26 (experiments/streaks)
+    # the default's card before its threshold and shifts were raised (study "streaks")
     "model, card before": (
         "model",
         {

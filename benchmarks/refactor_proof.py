@@ -294,6 +294,23 @@ def _diff(a: object, b: object, where: str = "") -> list[str]:
     return [] if a == b else [f"{where}: {a!r} != {b!r}"[:300]]
 
 
+def _option_diff(recorded: dict[str, list[str]], now: dict[str, list[str]]) -> list[str]:
+    """Commands and options lost are differences; new ones are noted (an addition keeps
+    every recorded command line working)."""
+    out = []
+    for command in sorted(set(recorded) | set(now)):
+        if command not in now:
+            out.append(f"/cli_options/{command}: only in recorded")
+            continue
+        gone = sorted(set(recorded.get(command, [])) - set(now[command]))
+        added = sorted(set(now[command]) - set(recorded.get(command, [])))
+        if gone:
+            out.append(f"/cli_options/{command}: options gone {gone}")
+        if added:
+            print(f"note (added): /cli_options/{command}: {added}")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("mode", choices=("record", "check"))
@@ -307,13 +324,14 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     recorded = json.loads(args.path.read_text())
     recorded = {k: v for k, v in recorded.items() if k in now}
+    n = sum(len(v) if isinstance(v, dict) else 1 for k, v in recorded.items() if k != "cli_help")
     help_diff = _diff(recorded.pop("cli_help", {}), now.pop("cli_help", {}), "cli_help")
     for line in help_diff:
         print(f"note (help text): {line}")
-    diff = _diff(recorded, json.loads(json.dumps(now)))
+    diff = _option_diff(recorded.pop("cli_options", {}), now.pop("cli_options", {}))
+    diff += _diff(recorded, json.loads(json.dumps(now)))
     for line in diff:
         print(f"DIFFERS {line}")
-    n = sum(len(v) if isinstance(v, dict) else 1 for v in recorded.values())
     print(f"{'FAIL' if diff else 'OK'}: {n} groups compared, {len(diff)} differ")
     return 1 if diff else 0
 

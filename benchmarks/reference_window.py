@@ -23,8 +23,8 @@ What the picture keeps, and what :func:`reference_window` assumes for the rest:
   lights' own pixels fire ``core`` times per window: 1 (as drawn), 4 and 8. At 4, the
   filters reproduce what the issue measured on the recording itself: FastDecay keeps
   86 % of the light (the issue: 85 %) and the previous default (``eflare``) removes
-  70 % of it (the issue: 65 %). ``experiments/reference-window/README.md`` has the
-  checks.
+  70 % of it (the issue: 65 %). The study "reference-window" of ``docs/studies.md``
+  has the checks.
 
 So this is a proxy: the flare's places and polarities are real, its timing is not. It is
 where the bundled default is tested on streaks and a ghost ring like the issue's.

@@ -59,6 +59,10 @@ def test_info_prints_a_weights_files_card(tmp_path, capsys):
     ) in out
     assert "keep        probability > 0.4" in out
     assert "score_davis_lamps_combined 0.872" in out
+    assert main(["info", "firenet"]) == 0  # the bundled reconstructor's card
+    out = capsys.readouterr().out
+    assert "model       reconstructor (5 bins, 16 features, 20 ms windows)" in out
+    assert "ratio       0.89" in out and "command     python -m edeflare.recon.train" in out
     path = tmp_path / "m.safetensors"
     save_model(path, create_model("unet2d.tiny"), ModelCard(preset="unet2d.tiny", seed=3))
     assert main(["info", str(path)]) == 0

@@ -10,8 +10,8 @@ import pytest
 from edeflare.errors import AnnotationError, ParameterError
 from edeflare.lights import (
     Circle,
-    LightSource,
     Lights,
+    LightSource,
     Polygon,
     bundled_lights,
     detect_light_source,
@@ -42,9 +42,8 @@ def test_save_then_load_gives_the_same_lights(tmp_path):
 
 def test_the_pairing_layout_of_lights_loads_as_fixed_sources(tmp_path):
     path = tmp_path / "old.json"
-    path.write_text(
-        json.dumps({"lights": [{"type": "circle", "cx": 3, "cy": 4, "r": 2}, "polygon:0,0,4,0,4,4"]})
-    )
+    old = {"lights": [{"type": "circle", "cx": 3, "cy": 4, "r": 2}, "polygon:0,0,4,0,4,4"]}
+    path.write_text(json.dumps(old))
     lights = load_lights(path)
     assert [s.kind for s in lights.sources] == ["circle", "polygon"]
     assert lights.sources[0].shape == Circle(3.0, 4.0, 2.0)
@@ -55,7 +54,7 @@ def test_the_pairing_layout_of_lights_loads_as_fixed_sources(tmp_path):
 def test_a_moving_source_has_no_outline_and_the_pairing_says_so():
     track = LightSource.track([[0, 1, 1, 1], [100, 5, 1, 1]])
     with pytest.raises(ParameterError, match="a track light source moves"):
-        track.shape
+        _ = track.shape
     config = PairConfig(lights=(LightSource.circle(5, 5, 2),))
     assert config.lights == (Circle(5.0, 5.0, 2.0),)  # the pairing works on outlines
     with pytest.raises(ParameterError, match="moves"):

@@ -237,6 +237,46 @@ def test_the_cli_says_where_a_time_limit_stopped_it(dataset, tmp_path, capsys):
     assert "trained unet2d.tiny for 12 iterations" in capsys.readouterr().out
 
 
+def test_several_data_folders_train_as_one_folder_of_prefixed_links(dataset, tmp_path):
+    """``edeflare train DAY NIGHT`` sees the windows in the order a MIX folder holding
+    ``day_*`` and ``night_*`` links to their files gives (names sorted)."""
+    from edeflare.cli import main
+
+    folders = {"day": ["s0.h5", "s1.h5", "s2.h5"], "night": ["s3.h5", "s4.h5", "s5.h5"]}
+    for name, files in folders.items():
+        for split, kept in (("train", files), ("test", ["s0.h5"])):
+            (tmp_path / name / split).mkdir(parents=True)
+            (tmp_path / "mix" / split).mkdir(parents=True, exist_ok=True)
+            for f in kept:
+                (tmp_path / name / split / f).symlink_to(dataset / split / f)
+                (tmp_path / "mix" / split / f"{name}_{f}").symlink_to(dataset / split / f)
+    args = ["--preset", "unet2d.tiny", "--iterations", "6", "--batch-size", "2"]
+    args += ["--crop", "8x8", "--val-every", "3", "--val-windows", "3", "--checkpoint-every", "3"]
+    assert main(["train", str(tmp_path / "mix"), "--out", str(tmp_path / "a"), *args]) == 0
+    day, night = str(tmp_path / "day"), str(tmp_path / "night")
+    assert main(["train", day, night, "--out", str(tmp_path / "b"), *args]) == 0
+    a = _weights(tmp_path / "a" / "model.safetensors")
+    b = _weights(tmp_path / "b" / "model.safetensors")
+    for (name, x), y in zip(a.items(), b.values(), strict=True):
+        assert torch.equal(x, y), name
+    val_a, val_b = _log(tmp_path / "a" / "val_log.csv"), _log(tmp_path / "b" / "val_log.csv")
+    assert [r["val_mse"] for r in val_a] == [r["val_mse"] for r in val_b]
+    assert json.loads((tmp_path / "b" / "config.json").read_text())["data"] == f"{day} {night}"
+    # the other order is another sample order: another model
+    assert main(["train", night, day, "--out", str(tmp_path / "c"), *args]) == 0
+    c = _weights(tmp_path / "c" / "model.safetensors")
+    assert not all(torch.equal(x, y) for x, y in zip(a.values(), c.values(), strict=True))
+
+
+def test_a_data_folder_without_training_files_is_a_one_line_error(dataset, tmp_path, capsys):
+    from edeflare.cli import main
+
+    (tmp_path / "empty").mkdir()
+    argv = ["train", str(dataset), str(tmp_path / "empty"), "--out", str(tmp_path / "r")]
+    assert main(argv) == 1
+    assert "empty/train: no such dataset folder" in capsys.readouterr().err
+
+
 def test_resume_keeps_the_best_score_and_the_clock(dataset, tmp_path):
     cfg = _config(iterations=12)
     out = tmp_path / "r"

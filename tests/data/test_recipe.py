@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import h5py
 import pytest
 
 from edeflare.data.dsec_flare import DsecFlareConfig
 from edeflare.data.eflare import FlareConfig
+from edeflare.data.generate import generate_dataset
 from edeflare.data.recipe import RECIPES, Recipe
 from edeflare.errors import ParameterError
 from edeflare.sim.optics_scene import OpticsSceneConfig
@@ -25,7 +27,13 @@ DIGESTS_BEFORE_THE_SPLIT = {
 DIGESTS_SINCE = {
     "eflare-night": "3da4706a3e07b77dc7b655b4237a6c2e85f4208724c3d7197f126a0195c8b142",
     "eflare-night-sparse": "beff5735ac634792174a6b828af05bd7315012a4c5a2bd81cec4e5e47d155c6d",
+    "eflare-day-street": "2c842cc3ea4f7f6285b9b623a46e2b2ddd62aebcf3b34818800d330665d937e0",
 }
+# The recipe the `night` model's day data was first generated with, under the name
+# "eflare-day-mix": eflare-day-street is that recipe, renamed. The name is stored in the
+# files (their recipe and recipe_sha256 attributes), never drawn from: the events are
+# the same.
+DAY_MIX_DIGEST = "b611e449bf406db8b82393e3c8ad9e491d28cb21059040748497ccc8b1aab114"
 FLAT_BEFORE_THE_SPLIT = {  # old flat dicts and their digests at dc60cee
     "beb8317d7f81eae1f72cbec6bb35a8ea0cd893ed86e8fa218429ef07143b33c2": {
         "variant": "forward",
@@ -107,3 +115,29 @@ def test_the_flare_configs_checks_reach_the_recipe():
     # an optics dict carries the flare kind's defaults (format 1): accepted as they are
     d = RECIPES["eflare-r-sim"].to_dict()
     assert d["variant"] == "physical" and Recipe.from_dict(d) == RECIPES["eflare-r-sim"]
+
+
+def test_the_day_street_is_the_night_recipe_over_a_street_lit_as_by_day(tmp_path):
+    day, night = RECIPES["eflare-day-street"], RECIPES["eflare-night"]
+    assert (day.sequences, day.test_sequences, day.seed) == (72, 6, 101)
+    assert day.replace(name="eflare-day-mix").sha256() == DAY_MIX_DIGEST
+    # the night recipe's lights, flare script, sensing and hot pixels; only the street differs
+    assert day.config == night.config and day.sensor_size == night.sensor_size
+    assert day.replace(scene=night.scene, sequences=180, test_sequences=12, seed=0,
+                       name="eflare-night") == night  # fmt: skip
+    scene = day.scene
+    assert scene.sky_level == (80.0, 200.0) and scene.building_level == (60.0, 200.0)
+    assert scene.sky_level[0] > night.scene.sky_level[1]  # brighter than any night sky
+    assert scene.lamps == (0, 2)
+
+
+def test_the_day_street_generates(tmp_path):
+    tiny = RECIPES["eflare-day-street"].replace(
+        sequences=2, test_sequences=1, sensor_size=(48, 36), duration_us=20_000
+    )
+    report = generate_dataset(tiny, tmp_path, progress=False)
+    assert report.manifest["complete"] and report.manifest["recipe"]["name"] == "eflare-day-street"
+    with h5py.File(tmp_path / "train" / "seq_00000.h5") as f:
+        assert f.attrs["recipe"] == "eflare-day-street"
+        assert f.attrs["recipe_sha256"] == tiny.sha256()
+        assert {"input", "gt", "gt_full"} <= set(f)  # keep-only targets of the sparse sensing

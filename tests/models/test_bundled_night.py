@@ -21,10 +21,12 @@ from edeflare.models.weights import read_card
 def test_the_night_card_says_what_it_is_and_night_is_the_default():
     card = read_card(bundled_weights("night"))
     assert DEFAULT_MODEL == "night" and bundled_weights() == bundled_weights("night")
+    # the threshold and the rules' shifts were chosen on the real recordings (night.md)
     assert card.preset == "mask.pixel" and card.keep_threshold == 0.4
     assert "--loss keep" in card.command and "--init night-7e5b73e.safetensors" in card.command
+    assert card.command.startswith("edeflare train DAY NIGHT ")  # in this order: see the data
     assert "--polarity-flip" in card.command and "--polarity-flip" in card.data
-    assert "--recipe eflare-night" in card.data and "gen_day.py" in card.data
+    assert "--recipe eflare-night" in card.data and "--recipe eflare-day-street" in card.data
     assert card.metrics["score_davis_lamps_combined"] == 0.872
     # the rules it sets (edeflare.rules); the card written before the registry still reads
     assert card.rule_set().changed() == {

@@ -233,7 +233,7 @@ def test_warm_up_changes_no_output(model, rng):
 def test_cuda_networks_run_in_full_precision_and_restore_the_flags():
     # On an H200, cuDNN's defaults moved the default model's logits by up to 6e-3 from
     # the CPU's, and 2-16 events of a real recording changed side of the threshold
-    # (experiments/gpu-default). The flags are process-wide: they must come back.
+    # (docs/studies.md, "gpu-default"). The flags are process-wide: they must come back.
     cudnn = torch.backends.cudnn
     before = (cudnn.enabled, cudnn.benchmark, cudnn.deterministic, cudnn.allow_tf32)
     with _full_precision(torch.device("cuda")):

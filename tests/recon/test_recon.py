@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -148,3 +149,17 @@ def test_training_resumes_exactly(tmp_path, monkeypatch):
     other = dataclasses.replace(config, lr=config.lr / 2)
     with pytest.raises(EdeflareError, match=r"\['lr'\]"):
         recon_train.train_reconstructor(tmp_path / "b", other, progress=False)
+
+
+def test_the_module_command_records_itself_and_the_held_out_score(tmp_path, capsys):
+    argv = [str(tmp_path / "run"), "--iterations", "2", "--batch-size", "2", "--clips", "2"]
+    argv += ["--windows", "3", "--width", "24", "--height", "16"]
+    assert recon_train.main(argv) == 0
+    _, card = load_reconstructor(tmp_path / "run" / "model.safetensors")
+    assert card.command.startswith("python -m edeflare.recon.train " + " ".join(argv))
+    assert "train_reconstructor" in card.command and card.iterations == 2
+    assert set(card.metrics) == {"held_out_l1", "flat_gray_l1", "ratio"}  # held_out_error's
+    assert card.metrics["ratio"] == pytest.approx(
+        card.metrics["held_out_l1"] / card.metrics["flat_gray_l1"]
+    )
+    assert json.loads(capsys.readouterr().out.splitlines()[-1]) == card.metrics

@@ -21,6 +21,7 @@ from ..errors import EdeflareError
 from . import (
     ablate,
     benchmark,
+    bundle,
     convert,
     deflare,
     demo,
@@ -60,6 +61,7 @@ COMMANDS = (
     simulate,
     pair,
     train,
+    bundle,
     export,
     ablate,
     demo,

@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     if args.file.suffix.lower() in _WEIGHTS:
         return _card(args.file)
     if not args.file.suffix and not args.file.exists():
-        try:  # a bundled model's name (night, eflare, paper)
+        try:  # a bundled model's name (night, eflare, paper, firenet)
             return _card(bundled_weights(args.file.name))
         except EdeflareError:
             pass  # not one: the event reader names the missing file
@@ -69,9 +69,13 @@ def run(args: argparse.Namespace) -> int:
 
 def _card(path: Path) -> int:
     """Print the model card of a weights file (no tensors loaded)."""
-    from ..models.weights import read_card
+    from ..models.weights import read_card, read_metadata
     from ..rules import RULES
 
+    if path.suffix.lower() == ".safetensors":
+        meta = read_metadata(path)
+        if "edeflare_recon_card" in meta and "edeflare_card" not in meta:
+            return _recon_card(path, meta["edeflare_recon_card"])
     card = read_card(path)
     print(f"file        {path}")
     print(f"preset      {card.preset} ({card.bins} bins, {card.window_us / 1000:g} ms windows)")
@@ -86,6 +90,28 @@ def _card(path: Path) -> int:
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")
     for name in ("data", "command", "notes"):
+        text = getattr(card, name)
+        if text:
+            print(f"{name:<11} {text}")
+    return 0
+
+
+def _recon_card(path: Path, text: str) -> int:
+    """Print a reconstructor's card (``edeflare reconstruct``'s weights)."""
+    import json
+
+    from ..recon.weights import ReconCard
+
+    card = ReconCard.from_dict(json.loads(text))
+    print(f"file        {path}")
+    print(
+        f"model       reconstructor ({card.bins} bins, {card.features} features, "
+        f"{card.window_us / 1000:g} ms windows)"
+    )
+    print(f"{'iterations':<11} {card.iterations}")
+    for key, value in card.metrics.items():
+        print(f"{key:<11} {value}")
+    for name in ("data", "command"):
         text = getattr(card, name)
         if text:
             print(f"{name:<11} {text}")

@@ -36,7 +36,9 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         default="eflare-mini",
         help="eflare-2.7k (the paper's: 544 x 100 ms at 640x480), eflare-mini (120 at 346x260), "
         "eflare-night (180 at 346x260, calibrated on real night recordings), eflare-night-sparse "
-        "(the same with sparse backgrounds and ghosts sensed at their own rate); test sets: "
+        "(the same with sparse backgrounds and ghosts sensed at their own rate), "
+        "eflare-day-street (72 at 346x260: eflare-night's lights and flare over a street lit as "
+        "by day); test sets: "
         "eflare-r-sim (30 at 640x480), eflare-r-sim-mini (20 at 346x260), "
         "dsec-flare (15 DSEC windows of 100 ms at 640x480, needs --dsec-root)",
     )

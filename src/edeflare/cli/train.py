@@ -7,9 +7,13 @@ import dataclasses
 import os
 import shlex
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
-HELP = "Train E-DeflareNet on paired sequences (DATA/train, optional DATA/test); resumes."
+HELP = (
+    "Train E-DeflareNet on paired sequences (DATA/train, optional DATA/test; several DATA "
+    "folders side by side); resumes."
+)
 
 
 def _crop(text: str) -> tuple[int, int]:
@@ -22,6 +26,16 @@ def _crop(text: str) -> tuple[int, int]:
     return h, w
 
 
+def _milestones(text: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"milestones must be epochs separated by commas (e.g. 10,20,30; '' for none), "
+            f"got {text!r}"
+        ) from None
+
+
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     """Register the command."""
     p = sub.add_parser(
@@ -31,7 +45,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "(NCCL on GPUs, gloo on CPUs). Unset options take the --config preset's values.",
         **kwargs,
     )
-    p.add_argument("data", type=Path, help="dataset folder with train/ (and test/) *.h5 sequences")
+    p.add_argument(
+        "data",
+        type=Path,
+        nargs="+",
+        help="dataset folder(s) with train/ (and test/) *.h5 sequences; with several, the "
+        "training windows are those of every folder's train/ in the order given (each "
+        "folder's files sorted by name), and the validation windows those of their test/",
+    )
     p.add_argument(
         "--out", type=Path, required=True, help="run folder (resumed if it has a checkpoint)"
     )
@@ -70,6 +91,19 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="random crop size (needed when the sequences have several sensor sizes)",
     )
     p.add_argument(
+        "--flip",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="random horizontal and vertical flips of the training windows",
+    )
+    p.add_argument(
+        "--milestones",
+        type=_milestones,
+        metavar="EPOCHS",
+        help="epochs at which the learning rate is multiplied by the preset's gamma, "
+        "separated by commas ('' for none)",
+    )
+    p.add_argument(
         "--time-shift",
         action="store_true",
         default=None,
@@ -86,6 +120,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     )
     p.add_argument("--seed", type=int)
     p.add_argument("--val-every", type=int)
+    p.add_argument("--val-windows", type=int, help="validation windows per validation")
     p.add_argument("--checkpoint-every", type=int)
     p.add_argument("--workers", type=int, dest="num_workers", help="data loader processes")
     p.add_argument(
@@ -121,7 +156,6 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the configuration, then train."""
-    from ..io.sequence import list_sequences
     from ..train import TRAIN_PRESETS, train
 
     base = TRAIN_PRESETS[args.config]
@@ -130,13 +164,14 @@ def run(args: argparse.Namespace) -> int:
         for f in dataclasses.fields(base)
         if f.name != "data" and getattr(args, f.name, None) is not None
     }
-    config = dataclasses.replace(base, **overrides, data=str(args.data))
-    test_dir = args.data / "test"
+    data = " ".join(str(folder) for folder in args.data)
+    config = dataclasses.replace(base, **overrides, data=data)
+    train_paths, val_paths = dataset_files(args.data)
     final = train(
         config,
-        list_sequences(args.data / "train"),
+        train_paths,
         args.out,
-        val_paths=list_sequences(test_dir) if test_dir.is_dir() else None,
+        val_paths=val_paths or None,
         command="edeflare " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
     )
     if int(os.environ.get("RANK", "0")) == 0:  # once, not per DDP process
@@ -146,3 +181,44 @@ def run(args: argparse.Namespace) -> int:
         of = "" if done == config.iterations else f" of {config.iterations} (time limit)"
         print(f"trained {config.preset} for {done}{of} iterations: {final}")
     return 0
+
+
+def dataset_files(folders: Sequence[Path]) -> tuple[list[Path], list[Path]]:
+    """The training and validation files of one or several dataset folders.
+
+    Each folder's ``train/`` files (sorted by name), the folders in the order
+    given; likewise their ``test/`` files, for the folders that have one. The
+    order fixes which window each sample index is, so two folders given as
+    ``DAY NIGHT`` train exactly as one folder holding ``day_*.h5`` and
+    ``night_*.h5`` links to their files did.
+
+    Parameters
+    ----------
+    folders : sequence of Path
+        Dataset folders (``edeflare simulate`` output), at least one.
+
+    Returns
+    -------
+    train_paths, val_paths : list of Path
+        ``val_paths`` is empty when no folder has a ``test/``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> root = Path(tempfile.mkdtemp())
+    >>> for name in ("b/train/seq_1.h5", "b/train/seq_0.h5", "a/train/seq_0.h5", "a/test/seq_2.h5"):
+    ...     (root / name).parent.mkdir(parents=True, exist_ok=True)
+    ...     (root / name).touch()
+    >>> train, val = dataset_files([root / "b", root / "a"])
+    >>> [p.relative_to(root).as_posix() for p in train], [p.name for p in val]
+    (['b/train/seq_0.h5', 'b/train/seq_1.h5', 'a/train/seq_0.h5'], ['seq_2.h5'])
+    """
+    from ..io.sequence import list_sequences
+
+    train_paths: list[Path] = []
+    val_paths: list[Path] = []
+    for folder in folders:
+        train_paths += list_sequences(folder / "train")
+        if (folder / "test").is_dir():
+            val_paths += list_sequences(folder / "test")
+    return train_paths, val_paths

@@ -356,12 +356,12 @@ _NIGHT_RECIPE = Recipe(
     config=FlareConfig(script=_NIGHT_SCRIPT, sensing=_NIGHT_SENSING),
 )
 # eflare-night-sparse (2026-11-26): the night recipe with the backgrounds as sparse as the
-# real recordings' (3-5 events/px/s where they have 0.4-6.7 and eflare-night 18-24: the
-# issue's "speckle-dense" streets), less background activity, and ghosts bright enough
+# real recordings' (3-5 events/px/s where they have 0.4-6.7 and eflare-night 18-24:
+# "speckle-dense" streets), less background activity, and ghosts bright enough
 # to fire over a dark sky, sensed at their own rate wherever they land (the ghost rings
 # of ../shared/reference/real_flare_example.png). Closer to real recordings in every
 # density statistic (docs/benchmarks.md); a model fine-tuned on it deletes dense real
-# scenes (experiments/ghosts/README.md).
+# scenes, so no bundled model is trained on it (docs/studies.md, "ghosts").
 _SPARSE_NIGHT_SCRIPT = dataclasses.replace(_NIGHT_SCRIPT, ghost_level=(1.0, 12.0))
 _SPARSE_NIGHT_SCENE = dataclasses.replace(
     _NIGHT_SCENE,
@@ -372,6 +372,23 @@ _SPARSE_NIGHT_SCENE = dataclasses.replace(
 )
 _SPARSE_NIGHT_SENSING = dataclasses.replace(
     _NIGHT_SENSING, noise_rate=(0.1, 5.0), ghost_survival=(0.03, 0.3)
+)
+
+# eflare-day-street (2026-11-25): eflare-night's lights, flare script, sparse sensing and hot
+# pixels over a synthetic street lit as by day: bright sky, buildings and road with strong
+# texture, 12-43 events per pixel and second to keep (the Prophesee Gen4.1 daytime street
+# has 27, the night recipe's streets 1-5). The `night` model's training data mixes it with
+# eflare-night, so that density alone does not read as light.
+_DAY_SCENE = SceneConfig(
+    sky_level=(80.0, 200.0),
+    building_level=(60.0, 200.0),
+    road_level=(50.0, 150.0),
+    marking_level=(120.0, 230.0),
+    window_level=(80.0, 230.0),
+    texture_contrast=(0.1, 0.35),
+    pan_px_per_s=(20.0, 200.0),
+    zoom_per_s=(0.0, 0.8),
+    lamps=(0, 2),
 )
 
 RECIPES: Registry[Recipe] = Registry("recipe")
@@ -396,6 +413,14 @@ for _recipe in (
         scene=_SPARSE_NIGHT_SCENE,
         config=FlareConfig(script=_SPARSE_NIGHT_SCRIPT, sensing=_SPARSE_NIGHT_SENSING),
     ),
+    dataclasses.replace(
+        _NIGHT_RECIPE,
+        name="eflare-day-street",
+        sequences=72,
+        test_sequences=6,
+        scene=_DAY_SCENE,
+        seed=101,
+    ),
 ):
     RECIPES.register(_recipe.name, _recipe)
 """Named recipes: the paper's E-Flare-2.7K (synthetic backgrounds unless files are given),
@@ -409,7 +434,10 @@ DSEC-Flare windows (15 of 100 ms at 640x480 by default) cut from a local DSEC co
 recordings: weaker scattered light, travelling lights of 3-28 px, and the sparse-sensing stage
 (:mod:`edeflare.sim.sensing`, with up to 8 hot pixels to remove), whose ``gt`` is a keep-only
 target; ``eflare-night-sparse`` (180 of 100 ms at 346x260), the same with sparse
-backgrounds and ghosts sensed at their own rate."""
+backgrounds and ghosts sensed at their own rate; and ``eflare-day-street`` (72 of 100 ms at
+346x260, 6 of them test, dataset seed 101), eflare-night's lights, flare and sensing over a
+street lit as by day (12-43 events per pixel and second to keep), the day half of the
+``night`` model's training data."""
 
 
 def list_recipes() -> list[str]:
@@ -418,7 +446,7 @@ def list_recipes() -> list[str]:
     Examples
     --------
     >>> list_recipes()  # doctest: +NORMALIZE_WHITESPACE
-    ['dsec-flare', 'eflare-2.7k', 'eflare-mini', 'eflare-night', 'eflare-night-sparse',
-     'eflare-r-sim', 'eflare-r-sim-mini']
+    ['dsec-flare', 'eflare-2.7k', 'eflare-day-street', 'eflare-mini', 'eflare-night',
+     'eflare-night-sparse', 'eflare-r-sim', 'eflare-r-sim-mini']
     """
     return RECIPES.names()

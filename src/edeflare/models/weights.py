@@ -36,6 +36,7 @@ __all__ = [
     "read_metadata",
     "read_tensors",
     "save_model",
+    "write_tensors",
     "write_weights",
 ]
 
@@ -99,8 +100,11 @@ class ModelCard:
         knobs = set(knob_fields())
         data = dict(data)
         rules = dict(data.pop("rules", None) or {})
+        fields = knob_fields()
         for key in sorted(set(data) & knobs):
-            rules.setdefault(key, data.pop(key))
+            value = data.pop(key)
+            if value != fields[key][1].default:  # an older card names every knob, off ones too
+                rules.setdefault(key, value)
         unknown = sorted(set(data) - known)
         if unknown:
             raise WeightsError(f"unknown model card keys {unknown}; known: {sorted(known)}")
@@ -144,6 +148,23 @@ def write_weights(
     ({'my_card': '{"n": 1}'}, ['bias', 'weight'])
     """
     tensors = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    write_tensors(path, tensors, key, card)
+
+
+def write_tensors(
+    path: str | os.PathLike[str], tensors: dict[str, torch.Tensor], key: str, card: dict[str, Any]
+) -> None:
+    """Write ``tensors`` to a ``.safetensors`` file, atomically, with ``card`` as JSON under
+    metadata ``key`` (what :func:`write_weights` does with a model's state).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "t.safetensors"
+    >>> write_tensors(p, {"w": torch.zeros(2, dtype=torch.float16)}, "my_card", {"n": 2})
+    >>> read_metadata(p), read_tensors(p)["w"].dtype
+    ({'my_card': '{"n": 2}'}, torch.float16)
+    """
     with atomic_path(Path(path)) as tmp:
         save_file(tensors, str(tmp), metadata={key: json.dumps(card)})
 

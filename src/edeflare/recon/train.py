@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -209,16 +209,36 @@ def train_reconstructor(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m edeflare.recon.train OUT [--iterations N] [--seed S]`` (resumes in OUT)."""
+    """``python -m edeflare.recon.train OUT [--iterations N] [--seed S]`` (resumes in OUT).
+
+    The card of ``OUT/model.safetensors`` then holds the command and the
+    held-out score (:func:`held_out_error`): ``edeflare bundle`` copies it as
+    it is.
+    """
     import argparse
+    import shlex
+    import sys
+
+    from .weights import load_reconstructor
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("out")
     for f, default in asdict(ReconTrainConfig()).items():
         parser.add_argument(f"--{f.replace('_', '-')}", type=type(default), default=default)
-    args = vars(parser.parse_args(argv))
+    words = sys.argv[1:] if argv is None else argv
+    args = vars(parser.parse_args(words))
     out = args.pop("out")
-    print(train_reconstructor(out, ReconTrainConfig(**args)))
+    path = train_reconstructor(out, ReconTrainConfig(**args))
+    model, card = load_reconstructor(path)
+    command = " ".join(["python -m edeflare.recon.train", *map(shlex.quote, words)])
+    card = replace(
+        card,
+        command=f"{command} (edeflare.recon.train.train_reconstructor)",
+        metrics={**card.metrics, **held_out_error(model)},
+    )
+    save_reconstructor(path, model, card)
+    print(path)
+    print(json.dumps(card.metrics))
     return 0
 
 
