@@ -1,4 +1,4 @@
-"""Flare statistics, real against simulated, and the side-by-side figure (issue "Real flare").
+"""Flare statistics, real against simulated, and the side-by-side figure.
 
 Measures :func:`edeflare.eval.flare_stats.flare_statistics` on
 

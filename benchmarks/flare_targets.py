@@ -1,4 +1,4 @@
-"""The targets of issues "Real flare" (13) and "Downstream" (17), measured in one run.
+"""The real-flare and downstream targets, measured in one run.
 
 Prints one table per target, each row with the requirement, what was measured and
 whether it is met, and writes ``results/flare_targets.json``:
@@ -16,9 +16,9 @@ whether it is met, and writes ``results/flare_targets.json``:
    shows how far a target is from what deleting can reach (it is scored, and its
    stream reconstructed, like the methods, and left out of the comparisons).
 3. **The eflare-mini test split** (seed 9999, 20 sequences): no worse than the model
-   bundled when the issue was filed (``eflare``) on any metric.
+   bundled before the default (``eflare``) on any metric.
 4. **Speed**: windows per second on that split, no slower than ``eflare``.
-5. **Downstream** (issue 17): the learned reconstruction of the de-flared stream
+5. **Downstream**: the learned reconstruction of the de-flared stream
    scores higher PSNR and SSIM against the clean frames than the raw input's, and
    gains more than every baseline does (``--no-downstream`` skips it).
 

@@ -1,5 +1,5 @@
 """Ghost rings and scattered light, simulated as real sensors record them: what each
-method removes (issue "Real flare", 13).
+method removes.
 
 The test set is ``eflare-night-sparse`` at 640x480 (8 sequences, seed 4242; simulated
 into ``--data`` first when absent, about 5 minutes on 2 cores): sparse night

@@ -1,4 +1,4 @@
-"""Byte-identity proof for restructurings (issue 15): digests of what the package makes.
+"""Byte-identity proof for restructurings: digests of what the package makes.
 
 Records the SHA-256 of
 
@@ -19,7 +19,7 @@ and compares them with a recorded JSON::
 
 Run it at the commit before the change and after it; ``check`` lists every
 digest that differs and exits 1. Recorded: ``results/refactor_proof_e8f9624.json``
-(before issue 15) and ``results/refactor_proof_caac30c.json`` (after it: every
+(before the recipe split) and ``results/refactor_proof_caac30c.json`` (after it: every
 digest of the first unchanged; new methods and commands added since). Run it
 in a clean worktree (``PYTHONPATH=WORKTREE/src``) so that uncommitted work in
 progress is not measured.

@@ -11,7 +11,7 @@ scores every method on them with ``edeflare score``'s regions
 What the picture keeps, and what :func:`reference_window` assumes for the rest:
 
 - **Positions**, one sensor pixel per picture pixel (its dots are single pixels, and
-  the streaks' 250 px reach is the issue's "halos up to about 250 px in radius at
+  the streaks' 250 px reach is the report's "halos up to about 250 px in radius at
   1280x720"). The crop's origin is not drawn: the panel is placed where the ghost ring
   is the light's reflection through the sensor's centre (:data:`OFFSET`).
 - **Polarity** (blue ON, red OFF, purple one of each).
@@ -21,20 +21,20 @@ What the picture keeps, and what :func:`reference_window` assumes for the rest:
   once. The recording's rate (1.2 M events in 10.8 s, 11,100 per 100 ms, against the
   panel's 5,431 drawn) is not enough to say where the rest fell, so each case lets the
   lights' own pixels fire ``core`` times per window: 1 (as drawn), 4 and 8. At 4, the
-  filters reproduce what the issue measured on the recording itself: FastDecay keeps
-  86 % of the light (the issue: 85 %) and the previous default (``eflare``) removes
-  70 % of it (the issue: 65 %). The study "reference-window" of ``docs/studies.md``
+  filters reproduce what was reported on the recording itself: FastDecay keeps
+  86 % of the light (reported: 85 %) and the previous default (``eflare``) removes
+  70 % of it (reported: 65 %). The study "reference-window" of ``docs/studies.md``
   has the checks.
 
 So this is a proxy: the flare's places and polarities are real, its timing is not. It is
-where the bundled default is tested on streaks and a ghost ring like the issue's.
+where the bundled default is tested on streaks and a ghost ring like the reported ones.
 
 Rows per case: the raw input, the baselines, the three dv-processing filters (where
 installed), the bundled default, the default with its light-free support alone (no
-crowding test, no scattered-light field: the card of 2026-11-27's sixth session) and
+crowding test, no scattered-light field: an earlier card) and
 without it (the card before that); with ``--eflare`` also the previous default
 ``eflare`` (slow at this size: 3 minutes a case on 2 cores). The reference is
-``dv-fastdecay``, the filter the issue compared with: ``vs fastdecay`` is each row's
+``dv-fastdecay``, the filter the report compared with: ``vs fastdecay`` is each row's
 combined score over its.
 
 Run: ``python benchmarks/reference_window.py [--eflare]``; writes

@@ -1,7 +1,7 @@
 """Helpers of the baseline tests: plain-Python reference filters and synthetic scenes.
 
 The reference filters are written straight from the behaviour of the original
-programs (issue 4 and ``../shared/data/golden/README.md``), one event at a
+programs (``../shared/data/golden/README.md``), one event at a
 time with ``collections.deque`` queues, float delays compared and truncated
 exactly as the C++ does (``int(t_old + d2)``). They are slow and obviously
 shaped like the originals; the compiled filters must agree with them event

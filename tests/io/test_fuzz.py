@@ -46,7 +46,7 @@ def test_fuzz_bounded(tmp_path, fmt):
 @pytest.mark.slow
 @pytest.mark.parametrize("fmt", harness.FORMATS)
 def test_fuzz_10000(tmp_path, fmt):
-    """The issue's target: 10,000 inputs per format, real recordings among the seeds."""
+    """The target: 10,000 inputs per format, real recordings among the seeds."""
     _assert_clean(_fuzz(fmt, 10_000, tmp_path, real=True))
 
 

@@ -123,9 +123,10 @@ def test_the_default_judges_a_recording_and_its_polarity_swap_alike():
 
 
 def test_the_default_removes_the_streaks_and_ghost_ring_of_the_reference_picture():
-    # issue 13's real night recording, one window of it digitised from its picture
+    # a real night recording, one window of it digitised from its picture
     # (benchmarks/reference_window.py: positions and polarities real, times drawn; the
-    # lights' pixels fire 4 times a window, where the filters match the issue's numbers)
+    # lights' pixels fire 4 times a window, where the filters match the numbers measured
+    # on the recording)
     picture = SHARED_DATA.parent / "reference" / "real_flare_example.png"
     if not picture.is_file():
         require("shared reference picture absent")

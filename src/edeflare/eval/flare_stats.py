@@ -1,8 +1,8 @@
 """Statistics of flare around a light source, the same for real and simulated recordings.
 
-To calibrate the simulator on real recordings (issue "Real flare"), both are
+To calibrate the simulator on real recordings, both are
 measured with one yardstick, around a known light source (an annotation
-:class:`~edeflare.eval.score.Lights` for a real recording,
+:class:`~edeflare.lights.Lights` for a real recording,
 :func:`lights_from_events` of the simulator's own ``light`` stream for a
 simulated one). Distances are in units of the source's radius ``r`` at each
 event's time, so a 36 px blob at 640x480 and a 10 px lamp at 346x260 compare.

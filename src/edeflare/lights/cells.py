@@ -38,7 +38,7 @@ blob 1.15-1.83. Dense scene that passes the cell rate fires slower: a daytime st
 (Prophesee Gen4.1, 25 M events/s) 0.27-0.54, where 15-16 small "lights" a window
 had turned every prior on and the light-free shift off. In the simulator's night streets
 at three sensor sizes, all but a few of the 2,399 groups under this rate hold none of
-the light source's events (``experiments/halo-prior/false_lights.py``). The margin
+the light source's events (the study ``halo-prior``, ``docs/studies.md``). The margin
 below the DAVIS lamps is small: a lamp dimmer than theirs would lose its priors."""
 
 MIN_LIGHT_RADIUS = 2.0

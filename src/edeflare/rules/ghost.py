@@ -55,7 +55,7 @@ to five times the source's distance, and 0.4-0.6 of the way towards it."""
 GHOST_MAX_NEIGHBOURS = 4
 """The prior covers an event in its cells only where the event's 3x3 neighbourhood holds
 at most this many events of the window, the event itself included. Chosen on the ghost
-benchmark's set and the real recordings (``experiments/ghosts/sparse_gate.py``): with a
+benchmark's set and the real recordings (the study ``ghosts``, ``docs/studies.md``): with a
 shift of 1 it keeps all of the simulated ghosts the ungated prior drops (0.873 against
 0.874) and two thirds of the DAVIS lamps' background it cost (63.5 % kept against 61.0 %;
 65.1 % without the prior)."""

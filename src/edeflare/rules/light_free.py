@@ -13,8 +13,8 @@ scene, none for the crowded isolated events, and in the field a lower logit for 
 none for the bloom next to the lamp and a higher one for the lamp's dense events.
 
 Measured on the isolated events (fewer than 2 others in their 5x5 square) of light-free
-windows, at 3 Poisson standard deviations (``experiments/reference-window/crowding.py``):
-99.8 % of the streak and ghost events of issue 13's digitised real window crowd, 8 % of
+windows, at 3 Poisson standard deviations (the study ``reference-window``, ``docs/studies.md``):
+99.8 % of the streak and ghost events of the digitised real reference window crowd, 8 % of
 ``eflare-r-sim``'s (background activity), and about half of the few isolated events of
 the real scenes without a light. Crowded isolated events are a third of the digitised
 window's events (a fifth to three fifths, by the lamp's rate) and 0.1-7 % of the
@@ -71,9 +71,9 @@ its area: scattered light is weak, so its field is a dark part of the sensor. A 
 scene's texture (foliage, a road's surface by day) also holds crowded isolated events,
 but among far more events: 5.4-31 per pixel and second (median 13.8) in the Prophesee
 Gen4.1 daytime street's squares where the field would lie, 2.4 at most in the digitised
-night window of issue 13 (1.5 at its calibrated lamp rate), 3.7 at the 95th percentile
+digitised night reference window (1.5 at its calibrated lamp rate), 3.7 at the 95th percentile
 in ``eflare-r-sim``'s and the real DAVIS346 scenes' few fields
-(``experiments/reference-window/field_rate.py``). :func:`light_free_shifts` holds
+(the study ``reference-window``). :func:`light_free_shifts` holds
 crowding itself to the same darkness."""
 
 SOURCE_SUPPORT = 6

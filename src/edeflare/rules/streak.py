@@ -36,13 +36,14 @@ out of their flanks as a spike does (``FLANK_FACTOR`` times the saturated runs t
 lit facade's grid of windows around a light fills them), and have a saturated run as
 long within ``ARM_PAIR_DEG`` of the opposite direction. A star has at least
 ``ARM_MIN`` arms; a lamp's tube or a moving light's stroke has two ends at most, and
-keeps them. (``experiments/rsim-gap/README.md``: on ``eflare-r-sim`` a third of the
-flare the default kept lay in its lights' own pixels, mostly such stars.)
+keeps them. (On ``eflare-r-sim`` a third of the flare the default kept lay in its
+lights' own pixels, mostly such stars: the study ``rsim-gap``, ``docs/studies.md``.)
 
 The prior is the events in the pixels of each spike angle (and arm) up to the end of
 its run.
 :class:`~edeflare.models.infer.ModelDeflarer` lowers their keep logit by the card's
-``streak_shift``. The measurements behind the constants: ``experiments/streaks/README.md``.
+``streak_shift``. The measurements behind the constants: the study ``streaks``
+(``docs/studies.md``).
 """
 
 from __future__ import annotations
