@@ -147,7 +147,8 @@ def _full_precision(device: torch.device) -> Iterator[None]:
     of the threshold, and a file streamed (other batch sizes) kept one event fewer than
     the same events in memory. Inside this block they agreed with the CPU on 7 of 8
     recordings and in all but 1 of 219,596 events on the 8th (the study ``gpu-default``,
-    ``docs/studies.md``). The mask networks are small and their time goes elsewhere. The previous flags are restored on exit; elsewhere this does nothing.
+    ``docs/studies.md``). The mask networks are small and their time goes elsewhere.
+    The previous flags are restored on exit; elsewhere this does nothing.
     """
     if device.type != "cuda":
         yield
