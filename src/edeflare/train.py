@@ -44,8 +44,9 @@ from .data.pairs import PairedWindows
 from .errors import EdeflareError
 from .io._atomic import atomic_path
 from .models import create_model, get_preset
-from .models.flaremask import FlareMaskNet, keep_loss
+from .models.flaremask import FlareMaskNet
 from .models.infer import resolve_weights
+from .models.mask_loss import keep_loss
 from .models.weights import ModelCard, init_from, save_model
 
 __all__ = ["LOSSES", "TRAIN_PRESETS", "TrainConfig", "train"]

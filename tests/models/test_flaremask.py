@@ -6,8 +6,9 @@ import torch
 
 from edeflare.events import make_events
 from edeflare.models import create_model
-from edeflare.models import flaremask as fm
-from edeflare.models.flaremask import FlareMaskNet, event_features, event_keep_mask
+from edeflare.models import mask_kernels as fm
+from edeflare.models.flaremask import FlareMaskNet
+from edeflare.models.mask_kernels import event_features, event_keep_mask
 from edeflare.voxel import encode
 
 
@@ -163,7 +164,7 @@ def test_event_logits_equal_the_dense_paths_whether_pixels_repeat_or_not(side):
 
 
 def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():
-    from edeflare.models.flaremask import event_pixel_features
+    from edeflare.models.mask_kernels import event_pixel_features
 
     # a hot pixel at (5, 5): 4 ON events; one OFF there; a lone ON at (6, 5); one at (8, 5)
     ev = make_events([0, 1, 2, 3, 4, 5, 6], [5, 5, 5, 5, 5, 6, 8], [5] * 7, [1, 1, 1, 1, 0, 1, 1])
@@ -175,7 +176,7 @@ def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():
 
 
 def test_events_outside_the_window_or_the_sensor_are_refused_not_read_out_of_bounds():
-    from edeflare.models.flaremask import event_pixel_features
+    from edeflare.models.mask_kernels import event_pixel_features
 
     lg = np.zeros((16, 2, 2), np.float32)
     late = make_events([5, 20_000], [1, 1], [1, 1], [1, 1])  # t = 20 000: the next window
@@ -198,7 +199,7 @@ def test_keep_loss_window_cells_keep_an_edge_the_flare_shifted_by_a_bin():
     """Two ON events in each of two bins; the target has all four in the second bin.
     Per bin, the first bin's two are to drop; per window, all four are to keep. The
     untrained net's keep probability is 3/4 everywhere."""
-    from edeflare.models.flaremask import keep_loss
+    from edeflare.models.mask_loss import keep_loss
 
     net = FlareMaskNet(bins=2, scale=4, features=(8, 16), groups=4)
     x = torch.zeros(1, 1, 2, 8, 8)

@@ -17,8 +17,8 @@ from edeflare.lights.cells import (
 )
 from edeflare.methods import create_method
 from edeflare.models import create_model
-from edeflare.models.flaremask import event_support
 from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.mask_kernels import event_support
 from edeflare.models.weights import ModelCard, save_model
 from edeflare.rules.ghost import ghost_cells, in_ghost_prior
 from edeflare.rules.halo import (

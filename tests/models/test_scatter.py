@@ -10,8 +10,8 @@ import pytest
 from edeflare.errors import ParameterError
 from edeflare.events import make_events
 from edeflare.lights.cells import covered_us
-from edeflare.models.flaremask import event_support
 from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.mask_kernels import event_support
 from edeflare.rules.light_free import (
     FIELD_MAX_RATE,
     FIELD_MIN_EVENTS,

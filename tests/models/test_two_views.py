@@ -11,8 +11,8 @@ from edeflare.errors import ParameterError
 from edeflare.events import EVENT_DTYPE, make_events, select_events
 from edeflare.methods import create_method, deflare_file
 from edeflare.models import create_model
-from edeflare.models.flaremask import keep_logit_threshold
 from edeflare.models.infer import ModelDeflarer
+from edeflare.models.mask_kernels import keep_logit_threshold
 from edeflare.models.two_view import TwoViewStreamer
 from edeflare.models.weights import ModelCard, save_model
 

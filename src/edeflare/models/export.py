@@ -175,7 +175,7 @@ def _export(model: nn.Module, card: ModelCard, size: SensorSize, opset: int) -> 
         (_SIZE_KEY, json.dumps(list(size))),
     ]
     params = model.pixel_params() if isinstance(model, FlareMaskNet) else None
-    if params is not None:  # applied per event after the graph (flaremask.event_keep_mask)
+    if params is not None:  # applied per event after the graph (mask_kernels.event_keep_mask)
         meta.append((_PIXEL_KEY, json.dumps({k: v.tolist() for k, v in params.items()})))
     for key, value in meta:
         entry = proto.metadata_props.add()
@@ -370,8 +370,8 @@ def onnx_parity(
     >>> p.max_abs_diff, p.decisions, p.decisions_differing, p.unit
     (0.0, 3, 0, 'event')
     """
-    from .flaremask import event_keep_mask
     from .infer import ModelDeflarer
+    from .mask_kernels import event_keep_mask
 
     torch_run = ModelDeflarer(weights, runtime="torch", batch_windows=1)
     onnx_run = ModelDeflarer(exported, batch_windows=1)

@@ -17,7 +17,7 @@ Mask models (:class:`~edeflare.models.flaremask.FlareMaskNet`, the ``mask.*``
 presets) skip the full-resolution grid: their low-resolution features are
 counted straight from the events and each input event is kept or dropped by
 the mask at its own pixel, bin and polarity
-(:func:`~edeflare.models.flaremask.event_keep_mask`); they add no events, so
+(:func:`~edeflare.models.mask_kernels.event_keep_mask`); they add no events, so
 both decoders give the same result.
 """
 
@@ -47,7 +47,8 @@ from ..rules import RULES, RuleSet, WindowContext
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
-from .flaremask import FlareMaskNet, event_features, event_keep_logits, keep_logit_threshold
+from .flaremask import FlareMaskNet
+from .mask_kernels import event_features, event_keep_logits, keep_logit_threshold
 from .two_view import TwoViewStreamer, check_phase_shift
 from .weights import ModelCard, load_model
 
@@ -391,7 +392,7 @@ class ModelDeflarer:
 
         One network call for the batch; windows may start anywhere (aligned or
         not). An event is kept where its logit exceeds
-        :func:`~edeflare.models.flaremask.keep_logit_threshold` of
+        :func:`~edeflare.models.mask_kernels.keep_logit_threshold` of
         :attr:`keep_threshold`.
 
         Examples

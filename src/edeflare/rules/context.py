@@ -29,7 +29,7 @@ class WindowContext:
         over it (:func:`edeflare.lights.cells.covered_us`).
     support : numpy.ndarray or None
         Each event's count of other events in its 5x5 square, where the network's
-        per-event refinement counted it (:func:`~edeflare.models.kernels.event_support`).
+        per-event refinement counted it (:func:`~edeflare.models.mask_kernels.event_support`).
 
     Examples
     --------

@@ -349,7 +349,7 @@ def light_free_shifts(
     more likely scene. So every event rises by ``shift``, except:
 
     - with ``gate``, the isolated ones (fewer than ``gate`` others in their 5x5 square:
-      ``support``, :func:`~edeflare.models.flaremask.event_support`): a lamp too slow
+      ``support``, :func:`~edeflare.models.mask_kernels.event_support`): a lamp too slow
       for the light test scatters its light into such events;
     - with ``crowding`` too, only the isolated ones that crowd
       (:func:`crowded_isolated` at ``z = crowding``) in a dark part of the sensor (their
