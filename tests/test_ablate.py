@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
+from edeflare.ablate import ABLATIONS, VARIANT_ROWS, AblationConfig, run_ablation
 from edeflare.cli import main
 from edeflare.data.generate import generate_sequence
 from edeflare.errors import ParameterError
-from edeflare.eval.ablate import ABLATIONS, VARIANT_ROWS, AblationConfig, run_ablation
 from edeflare.io.dsec import DsecReader
 
 # Two variants, two training sequences, three iterations: the pipeline in a few seconds.

@@ -8,13 +8,13 @@ import dataclasses
 import pytest
 
 from edeflare._registry import Registry, cli_option, param_defaults
+from edeflare.ablate import ABLATIONS
 from edeflare.baselines.efr import EFRFilter, EFRParams
 from edeflare.baselines.pfd import PFDFilter, PFDParams
 from edeflare.cli import build_parser
 from edeflare.data.kinds import DATASET_KINDS
 from edeflare.data.recipe import RECIPES
 from edeflare.errors import ParameterError
-from edeflare.eval.ablate import ABLATIONS
 from edeflare.methods import METHODS, method_parameters
 from edeflare.models import MODELS
 from edeflare.train import TRAIN_PRESETS

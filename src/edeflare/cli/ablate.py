@@ -70,7 +70,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the ablation and print its table."""
-    from ..eval.ablate import ABLATIONS, run_ablation
+    from ..ablate import ABLATIONS, run_ablation
 
     ABLATIONS[args.config]  # an unknown name is an error listing the valid ones
     changes: dict[str, object] = {}

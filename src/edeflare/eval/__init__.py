@@ -9,7 +9,8 @@
 - :mod:`~edeflare.eval.flare_score`, :mod:`~edeflare.eval.reconstruct`,
   :mod:`~edeflare.eval.report`: flare scores, intensity reconstruction and the HTML report.
 - :mod:`~edeflare.eval.score`: scores on real recordings without ground truth.
-- :mod:`~edeflare.eval.ablate`: the composition ablation (train per variant, test).
+- the composition ablation (train per variant, test) is :mod:`edeflare.ablate`, above both
+  training and evaluation.
 
 Nothing is imported here: ``import edeflare.eval.metrics`` loads what it needs.
 """

@@ -42,17 +42,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .._registry import Registry
-from ..data.generate import RECIPES, FlareConfig, Recipe, generate_dataset
-from ..errors import ParameterError
-from ..io._atomic import atomic_path
-from ..io.sequence import list_sequences
-from ..sim.background import SceneConfig
-from ..sim.optics_scene import OpticsSceneConfig
-from ..sim.script import ScriptConfig
-from ..train import TRAIN_PRESETS, TrainConfig, train
-from .benchmark import BenchmarkResult, benchmark
-from .tables import ResultsTable
+from ._registry import Registry
+from .data.generate import RECIPES, FlareConfig, Recipe, generate_dataset
+from .errors import ParameterError
+from .eval.benchmark import BenchmarkResult, benchmark
+from .eval.tables import ResultsTable
+from .io._atomic import atomic_path
+from .io.sequence import list_sequences
+from .sim.background import SceneConfig
+from .sim.optics_scene import OpticsSceneConfig
+from .sim.script import ScriptConfig
+from .train import TRAIN_PRESETS, TrainConfig, train
 
 __all__ = [
     "ABLATIONS",
