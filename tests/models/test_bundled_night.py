@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import edeflare
 from conftest import SHARED_DATA, real_data_dir, require
 from edeflare.eval.score import score_events, score_recording
 from edeflare.events import event_keys
@@ -16,6 +18,11 @@ from edeflare.lights import bundled_lights, load_lights
 from edeflare.methods import deflare
 from edeflare.models.infer import DEFAULT_MODEL, bundled_weights
 from edeflare.models.weights import read_card
+
+# the bounds of the real recordings, one file that the model card lists too
+BOUNDS = json.loads(
+    (Path(edeflare.__file__).parent / "assets" / "night.bounds.json").read_text(encoding="utf-8")
+)
 
 
 def test_the_night_card_says_what_it_is_and_night_is_the_default():
@@ -37,20 +44,9 @@ def test_the_night_card_says_what_it_is_and_night_is_the_default():
     assert read_card(bundled_weights("eflare")).preset == "unet2d.lite"  # the previous default
 
 
-@pytest.mark.parametrize(
-    ("name", "min_removed", "min_light", "min_combined"),
-    [
-        # docs (mean of 4 window phases): 96.3 %, 97.2 %, 0.968 (worst phase 0.958);
-        # dv-bafilter 0.949 (it keeps 99.8 % of the blob)
-        ("prophesee_gen3_rotating_light.raw", 0.95, 0.96, 0.96),
-        # 81.3 %, 98.1 %, 0.872 (worst phase 0.865; 0.811 without the far shift);
-        # dv-fastdecay 0.693 at every phase. Issue 13's targets: 80 % removed, 90 % kept
-        ("davis346_flicker_lamps.aedat4", 0.80, 0.97, 0.86),
-    ],
-)
-def test_the_default_removes_flare_around_real_lights_and_keeps_them(
-    name, min_removed, min_light, min_combined
-):
+@pytest.mark.parametrize("name", sorted(BOUNDS["with_lights"]))
+def test_the_default_removes_flare_around_real_lights_and_keeps_them(name):
+    bound = BOUNDS["with_lights"][name]
     # every method at 4 window phases: where a recording's windows fall is chance
     report = score_recording(
         real_data_dir() / name,
@@ -59,8 +55,8 @@ def test_the_default_removes_flare_around_real_lights_and_keeps_them(
         phases=4,
     )
     default, fastdecay, bafilter = report.rows
-    assert default.flare_removed >= min_removed and default.light_kept >= min_light
-    assert default.combined >= min_combined
+    assert default.flare_removed >= bound["flare_removed"]
+    assert default.light_kept >= bound["light_kept"] and default.combined >= bound["combined"]
     # above both filters at every phase (Gen3: 0.958 against dv-bafilter's 0.949)
     assert default.combined_worst > max(fastdecay.combined, bafilter.combined)
 
@@ -77,25 +73,9 @@ def test_the_previous_default_erodes_the_light():
     assert default.combined > 4 * eflare.combined and eflare.light_kept < 0.6
 
 
-@pytest.mark.parametrize(
-    ("name", "min_kept"),
-    [
-        # docs: 98.3 % (98.4 % without the scattered-light field, 97.7 % with the
-        # light-free support alone, 99.1 % with the light-free shift at every event,
-        # 70.0 % without one; the previous default 77.8 %)
-        ("davis346_street_cars.aedat4", 0.975),
-        # docs: 99.2 % (99.1 % before crowding had to be dark, 99.6 % without the field,
-        # 99.2 % with the support alone, 99.9 % at every event; 89.8 % before
-        # window_lights' core rate)
-        ("davis346_lowlight_cradle.aedat4", 0.985),
-        # docs: 94.7 %, dense daytime texture: its crowded isolated events fire among
-        # too many others to be scattered light (93.3 % with only the field dark, 90.1 %
-        # before, 91.3 % with the support alone, 94.7 % at every event, 73.4 % with a
-        # shift of 2; 44.4 % before window_lights' core rate); dv-fastdecay 34.7 %
-        ("prophesee_gen41_street.raw", 0.935),
-    ],
-)
-def test_the_default_leaves_most_of_a_scene_without_lights(name, min_kept):
+@pytest.mark.parametrize("name", sorted(BOUNDS["without_lights"]))
+def test_the_default_leaves_most_of_a_scene_without_lights(name):
+    min_kept = BOUNDS["without_lights"][name]["kept"]
     # the light-free shift raises the events with support in their 5x5 square (2 or
     # more others of the window) and the isolated ones that do not crowd (background
     # activity): the crowded isolated rest of a scene is left to the network, and
@@ -147,6 +127,8 @@ def test_the_default_removes_the_streaks_and_ghost_ring_of_the_reference_picture
     # the light-free support alone 82.7 %, 89.1 %, 0.858; before it 33.6 %, 89.1 %,
     # 0.488); the light fires too slowly for the light test, so every window is
     # light-free: its scattered isolated events crowd, around the lamp's dense events
-    assert default.flare_removed >= 0.95 and default.light_kept >= 0.95
+    bound = BOUNDS["reference_window"]
+    assert default.flare_removed >= bound["flare_removed"]
+    assert default.light_kept >= bound["light_kept"]
     assert support.flare_removed < 0.85 and support.light_kept < 0.90
     assert before.flare_removed < 0.40 and default.combined > support.combined + 0.1

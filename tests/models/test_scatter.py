@@ -4,6 +4,8 @@ model."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -213,16 +215,16 @@ def test_scatter_field_equals_the_definition_by_loops():
 
 def test_a_scattered_light_field_is_dark():
     # the lamp's square (11x11 cells of 16 px: 30,976 px) holds its 36 events, the
-    # bloom's 11, the ring's 30 and 6 of the even spread: 83 events, at most 5 per pixel
-    # and second from 83 / (5e-6 * 30976) = 535.9 us on; in less time they are a lit
-    # texture's, not scattered light
+    # bloom's 11, the ring's 30 and 6 of the even spread: 83 events, at most
+    # FIELD_MAX_RATE per pixel and second from 83 / (rate * 30976) on (535.9 us at 5);
+    # in less time they are a lit texture's, not scattered light
+    edge = 83 / (FIELD_MAX_RATE * 1e-6 * 30_976)
     ev, parts = _slow_lamp_window()
     size = (640, 480)
-    assert FIELD_MAX_RATE == 5.0
     crowded = crowded_isolated(ev, size, event_support(ev, size) < 2, z=3.0)
     lamp = parts["lamp"]
-    assert scatter_field(ev, size, crowded, span_us=536)[lamp].all()
-    assert not scatter_field(ev, size, crowded, span_us=535)[lamp].any()
+    assert scatter_field(ev, size, crowded, span_us=math.ceil(edge))[lamp].all()
+    assert not scatter_field(ev, size, crowded, span_us=math.floor(edge))[lamp].any()
 
 
 def _far_from(events, x, y):

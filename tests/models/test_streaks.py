@@ -10,7 +10,7 @@ from edeflare.events import make_events, merge_events
 from edeflare.lights.cells import light_cells
 from edeflare.methods import create_method
 from edeflare.models.infer import ModelDeflarer, bundled_weights
-from edeflare.rules.streak import MIN_PIXEL_EVENTS, _runs, in_streak_prior
+from edeflare.rules.streak import _runs, in_streak_prior
 
 SIZE = (200, 120)
 CX, CY = 100, 60  # the light's centre: a 10x10 block, radius 5
@@ -92,10 +92,11 @@ def test_a_spike_without_its_partner_is_no_spike():
 
 
 def test_a_sparse_spike_is_left_to_the_network():
-    # one event per pixel: none saturated
-    assert MIN_PIXEL_EVENTS == 2
+    # one event per pixel: none saturated; two a pixel: the same rays are a spike pair
     spikes = merge_events(_ray(1, 8, 90, per_px=1), _ray(-1, 8, 90, per_px=1))
     assert not _on(merge_events(_light(), spikes), spikes).any()
+    saturated = merge_events(_ray(1, 8, 90, per_px=2), _ray(-1, 8, 90, per_px=2))
+    assert _on(merge_events(_light(), saturated), saturated).mean() > 0.8
 
 
 def test_a_dense_object_beside_the_light_spans_too_many_angles():
