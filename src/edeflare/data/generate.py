@@ -58,7 +58,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -415,8 +414,7 @@ def generate_dataset(
         entries[index] = entry
         for k in STAGES:
             stage_seconds[k] += timings.get(k, 0.0)
-        if bar is not None:
-            bar.update(1)
+        bar.update(1)
         if on_sequence is not None:
             on_sequence(index, timings)
         now = time.perf_counter()
@@ -432,8 +430,7 @@ def generate_dataset(
         else:
             _run_pool(recipe, todo, out, workers, finished)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     final_entries = dict(entries)
     if shard_n > 1:  # other shards' files, if they are all there
         for i in range(recipe.sequences):
@@ -498,16 +495,8 @@ def _run_pool(
 
 
 def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:
-    if not enabled:
-        return None
-    from tqdm import tqdm
+    from .._progress import progress_bar  # no bar when stderr is not a terminal (logs, nohup)
 
-    return tqdm(
-        total=total,
-        initial=initial,
-        desc=name,
-        unit="seq",
-        file=sys.stderr,
-        dynamic_ncols=True,
-        disable=None,  # no bar when stderr is not a terminal (logs, nohup)
+    return progress_bar(
+        total=total, initial=initial, enabled=enabled, desc=name, unit="seq", dynamic_ncols=True
     )
