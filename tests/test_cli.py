@@ -227,6 +227,41 @@ def test_internal_errors_show_the_traceback_and_ask_for_a_report(monkeypatch, ca
     assert "this is a bug" in err.splitlines()[-1] and "report it" in err
 
 
+def _wrapped(error: Exception) -> Exception:
+    """``error`` raised while handling a KeyboardInterrupt (as compiled code reports one)."""
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise error  # noqa: B904 - the implicit context is the point
+    except Exception as exc:
+        return exc
+
+
+@pytest.mark.parametrize("command", ["info", "simulate"])
+@pytest.mark.parametrize(
+    "error",
+    [
+        KeyboardInterrupt(),
+        _wrapped(SystemError("returned a result with an exception set")),
+        _wrapped(EventFileError("x.h5", "cannot write")),
+    ],
+    ids=["plain", "system-error", "edeflare-error"],
+)
+def test_an_interrupt_is_one_line_and_exit_130(monkeypatch, capsys, command, error):
+    import edeflare.cli.info as info
+    import edeflare.cli.simulate as simulate
+
+    def interrupted(args):
+        raise error
+
+    module = {"info": info, "simulate": simulate}[command]
+    monkeypatch.setattr(module, "run", interrupted)
+    assert main([command, "x.h5"]) == 130
+    resume = "; rerun to resume" if command == "simulate" else ""  # simulate resumes
+    assert capsys.readouterr().err == f"edeflare: interrupted{resume}\n"
+
+
 @pytest.mark.filterwarnings("default")
 @pytest.mark.parametrize("suffix", [".h5", ".csv"])
 def test_view_and_convert_times_are_relative_to_the_recording(tmp_path, capsys, suffix):

@@ -142,6 +142,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """True when a ``KeyboardInterrupt`` lies in ``exc``'s chain of causes and contexts."""
+    seen: set[int] = set()
+    todo: list[BaseException | None] = [exc]
+    while todo:
+        e = todo.pop()
+        if e is None or id(e) in seen:
+            continue
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        todo += [e.__cause__, e.__context__]
+    return False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``edeflare`` console script; returns the exit code."""
     try:
@@ -155,18 +170,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.simplefilter("default")  # shown as one line, never raised
             warnings.showwarning = _show_warning
             return int(args.func(args))
-    except EdeflareError as exc:
-        message = _common.user_message(exc, args, _subcommand(parser, args.command))
-        print(f"edeflare: error: {message}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
-        resume = "; rerun to resume" if getattr(args, "resumes", False) else ""
-        print(f"edeflare: interrupted{resume}", file=sys.stderr)
-        return 130
-    except OSError as exc:  # the system refused: a full disk, a folder without permission
-        print(f"edeflare: error: {exc}", file=sys.stderr)
-        return 1
-    except Exception:
+        return _interrupted(args)
+    except Exception as exc:
+        if _caused_by_interrupt(exc):  # Ctrl-C inside compiled code, wrapped in its error
+            return _interrupted(args)
+        if isinstance(exc, EdeflareError):
+            message = _common.user_message(exc, args, _subcommand(parser, args.command))
+            print(f"edeflare: error: {message}", file=sys.stderr)
+            return 1
+        if isinstance(exc, OSError):  # the system refused: a full disk, a forbidden folder
+            print(f"edeflare: error: {exc}", file=sys.stderr)
+            return 1
         traceback.print_exc()
         print(
             f"edeflare: internal error in 'edeflare {args.command}' (edeflare {__version__}): "
@@ -175,6 +190,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERNAL
+
+
+def _interrupted(args: argparse.Namespace) -> int:
+    """Say that the command was interrupted (and how to resume it, if it resumes): 130."""
+    resume = "; rerun to resume" if getattr(args, "resumes", False) else ""
+    print(f"edeflare: interrupted{resume}", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":  # pragma: no cover
