@@ -145,7 +145,7 @@ def _option_names(
 
     The first holds the fields of the parameter dataclasses that apply to this
     run (their ``--method``; :func:`add_param_options`); the second the command's
-    own options by destination (``keep_going`` for ``--keep-going``), with
+    own options by destination (``max_lag_ms`` for ``--max-lag-ms``), with
     ``X_us`` for an option ``--X-ms`` (unit ``"ms"``).
     """
     declared: dict[str, tuple[str, str]] = {}
@@ -198,7 +198,7 @@ def name_options(
     }
     names |= {name: (flag, unit, True) for name, (flag, unit) in declared.items()}
     in_ms: list[str] = []
-    for name in sorted(names, key=len, reverse=True):  # merge_us before us
+    for name in sorted(names, key=len, reverse=True):  # longest first
         flag, unit, anywhere = names[name]
         message, count = _name_pattern(name, anywhere).subn(flag, message)
         if count and unit == "ms" and flag not in in_ms:
