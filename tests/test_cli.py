@@ -231,6 +231,41 @@ def test_internal_errors_show_the_traceback_and_ask_for_a_report(monkeypatch, ca
     assert "this is a bug" in err.splitlines()[-1] and "report it" in err
 
 
+def _wrapped(error: Exception) -> Exception:
+    """``error`` raised while handling a KeyboardInterrupt (as compiled code reports one)."""
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise error  # noqa: B904 - the implicit context is the point
+    except Exception as exc:
+        return exc
+
+
+@pytest.mark.parametrize("command", ["info", "simulate"])
+@pytest.mark.parametrize(
+    "error",
+    [
+        KeyboardInterrupt(),
+        _wrapped(SystemError("returned a result with an exception set")),
+        _wrapped(EventFileError("x.h5", "cannot write")),
+    ],
+    ids=["plain", "system-error", "edeflare-error"],
+)
+def test_an_interrupt_is_one_line_and_exit_130(monkeypatch, capsys, command, error):
+    import edeflare.cli.info as info
+    import edeflare.cli.simulate as simulate
+
+    def interrupted(args):
+        raise error
+
+    module = {"info": info, "simulate": simulate}[command]
+    monkeypatch.setattr(module, "run", interrupted)
+    assert main([command, "x.h5"]) == 130
+    resume = "; rerun to resume" if command == "simulate" else ""  # simulate resumes
+    assert capsys.readouterr().err == f"edeflare: interrupted{resume}\n"
+
+
 @pytest.mark.filterwarnings("default")
 @pytest.mark.parametrize("suffix", [".h5", ".csv"])
 def test_view_and_convert_times_are_relative_to_the_recording(tmp_path, capsys, suffix):
@@ -299,9 +334,163 @@ def test_bad_option_values_are_one_line_exit_1(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["info", "a.h5", "--sensor-size", "640by480"])
     assert exc.value.code == 1
+    assert capsys.readouterr().err == (
+        "edeflare: error: argument --sensor-size: sensor size must look like 640x480, "
+        "got '640by480' (see edeflare info --help)\n"
+    )
+
+
+def parser_error(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    """The one line a usage error prints (the exit status checked: 1, as every user error)."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 1
     err = capsys.readouterr().err
-    assert "640x480" in err and len(err.strip().splitlines()) == 1
-    assert err.startswith("edeflare info: error: ")
+    assert err.count("\n") == 1 and err.endswith("\n")
+    return err.rstrip("\n")
+
+
+@pytest.mark.parametrize(
+    ("argv", "line"),
+    [
+        (
+            ["deflare", "in.h5", "out.h5", "--keep-treshold", "0.5"],
+            "unrecognized option --keep-treshold; did you mean --keep-threshold? "
+            "(see edeflare deflare --help)",
+        ),
+        (
+            ["deflare", "in.h5", "out.h5", "-m", "efr", "--efr-merg-ms=5"],
+            "unrecognized option --efr-merg-ms; did you mean --efr-merge-ms? "
+            "(see edeflare deflare --help)",
+        ),
+        (
+            ["simulate", "--sequnces", "4", "data"],
+            "unrecognized option --sequnces; did you mean --sequences? "
+            "(see edeflare simulate --help)",
+        ),
+        (  # an option of another command: nothing close in this one
+            ["simulate", "data", "--keep-threshold", "0.5"],
+            "unrecognized option --keep-threshold (see edeflare simulate --help)",
+        ),
+        (["info", "a.h5", "b.h5"], "unrecognized arguments: b.h5 (see edeflare info --help)"),
+    ],
+)
+def test_an_unknown_option_is_named_with_the_closest_one(argv, line, capsys):
+    assert parser_error(argv, capsys) == f"edeflare: error: {line}"
+
+
+@pytest.mark.parametrize(
+    ("argv", "line"),
+    [
+        (
+            ["deflare"],
+            "the following arguments are required: input, output (see edeflare deflare --help)",
+        ),
+        (
+            ["deflare", "a.h5", "b.h5", "--window-ms", "fast"],
+            "argument --window-ms: invalid float value: 'fast' (see edeflare deflare --help)",
+        ),
+        (
+            ["simulate", "data", "--variant", "nope"],
+            "argument --variant: invalid choice: 'nope' (choose from 'physical', 'simple', "
+            "'simple+random', 'physical+random', 'no-light', 'forward') "
+            "(see edeflare simulate --help)",
+        ),
+        ([], "the following arguments are required: COMMAND (see edeflare --help)"),
+    ],
+)
+def test_parser_errors_read_like_every_other_error(argv, line, capsys):
+    assert parser_error(argv, capsys) == f"edeflare: error: {line}"
+
+
+def test_a_folder_given_as_an_event_file_is_called_a_folder(small_h5, tmp_path, capsys):
+    path, _ = small_h5
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    for argv in (["info", str(folder)], ["deflare", str(folder), str(tmp_path / "o.h5")]):
+        assert main(argv) == 1
+        assert (
+            capsys.readouterr().err
+            == f"edeflare: error: {folder}: is a folder, not an event file\n"
+        )
+    assert main(["convert", str(path), str(folder)]) == 1  # an output folder too
+    assert capsys.readouterr().err == f"edeflare: error: {folder}: is a folder, not an event file\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.h5", "recordings"]
+    assert not list(folder.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("options", "line"),
+    [
+        (["--keep-threshold", "-3"], "--keep-threshold must be in (0, 1), got -3.0"),
+        (["--batch-windows", "0"], "--batch-windows must be a positive int, got 0"),
+        (
+            ["-m", "efr", "--efr-merge-ms", "-5"],
+            "--efr-merge-ms must be >= 0, got -5000 (in µs; --efr-merge-ms takes ms)",
+        ),
+        (
+            ["-m", "efr", "--efr-frequency", "1e6"],
+            "--efr-frequency=1000000.0 is too high: the delay d2 = d1/10 must be >= 1 µs "
+            "(use at most 100000 Hz)",
+        ),
+        (
+            ["-m", "voxel", "--voxel-bins", "100000"],
+            "--voxel-window-ms (20000) must be at least --voxel-bins (100000) "
+            "(in µs; --voxel-window-ms takes ms)",
+        ),
+        (["-m", "pfd-b", "--pfd-fifo-size", "300"], "--pfd-fifo-size must be at most 255, got 300"),
+    ],
+)
+def test_value_errors_name_the_option_not_the_parameter(small_h5, tmp_path, capsys, options, line):
+    path, _ = small_h5
+    out = tmp_path / "out.h5"
+    assert main(["deflare", str(path), str(out), *options]) == 1
+    assert capsys.readouterr().err == f"edeflare: error: {line}\n"
+    assert not out.exists()
+
+
+def test_a_commands_own_options_are_named_too(tmp_path, capsys):
+    out = tmp_path / "data"
+    assert main(["simulate", str(out), "--workers", "0"]) == 1
+    assert capsys.readouterr().err == "edeflare: error: --workers must be an int >= 1, got 0\n"
+    assert main(["simulate", str(out), "--duration-ms", "-5"]) == 1
+    assert capsys.readouterr().err == (
+        "edeflare: error: --duration-ms must be an int >= 0, got -5000 "
+        "(in µs; --duration-ms takes ms)\n"
+    )
+    assert not out.exists()
+
+
+def test_parameter_names_map_to_the_options_of_the_method_run():
+    from edeflare.cli import _subcommand, build_parser
+    from edeflare.cli._common import user_message
+    from edeflare.errors import EventFileError, ParameterError
+
+    parser = build_parser()
+    deflare = _subcommand(parser, "deflare")
+    exc = ParameterError("window_us must be an int >= 1, got 0")
+    for method, flag in (("voxel", "--voxel-window-ms"), ("pfd-a", "--pfd-window-ms")):
+        args = parser.parse_args(["deflare", "a.h5", "b.h5", "-m", method])
+        assert user_message(exc, args, deflare) == (
+            f"{flag} must be an int >= 1, got 0 (in µs; {flag} takes ms)"
+        )
+    args = parser.parse_args(["deflare", "a.h5", "b.h5", "-m", "efr"])
+    assert user_message(exc, args, deflare) == (  # efr has none: deflare's own --window-ms
+        "--window-ms must be an int >= 1, got 0 (in µs; --window-ms takes ms)"
+    )
+    # words, paths and quoted values that spell a parameter stay as they are
+    said = ParameterError("bias must hold finite numbers, see /data/bias/threshold.npy or 'rho1'")
+    assert user_message(said, args, deflare) == (
+        "--efr-bias must hold finite numbers, see /data/bias/threshold.npy or 'rho1'"
+    )
+    simulate = _subcommand(parser, "simulate")
+    args = parser.parse_args(["simulate", "data"])
+    plain = ParameterError("sequences must be >= 1; the seed of the sequences, not workers")
+    assert user_message(plain, args, simulate) == (
+        "--sequences must be >= 1; the seed of the sequences, not workers"
+    )
+    file_error = EventFileError("seed/workers.h5", "workers must be ...")  # not a parameter's
+    assert user_message(file_error, args, simulate) == "seed/workers.h5: workers must be ..."
 
 
 def test_console_script_runs_without_traceback(tmp_path):
@@ -360,8 +549,9 @@ def test_deflare_prior_shift_drops_a_subset_and_a_bad_one_is_a_clear_error(
     assert np.isin(b, a).all() and len(b) < len(a)  # it only drops, and drops more
     capsys.readouterr()
     assert main(["deflare", str(src), str(tmp_path / "x.h5"), option, "-1"]) == 1
-    name = option[2:].replace("-", "_")
-    assert f"{name} must be a finite number >= 0, got -1.0" in capsys.readouterr().err
+    assert capsys.readouterr().err == (
+        f"edeflare: error: {option} must be a finite number >= 0, got -1.0\n"
+    )
     assert not (tmp_path / "x.h5").exists()
 
 

@@ -622,7 +622,11 @@ def pair_files(tmp_path):
         (["--crop", "640x480"], "does not fit the 96x72 sensor"),
         (["--window-ms", "100000"], "no complete 100000 ms window"),
         (["--min-confidence", "0.99"], "is below 0.99"),
-        (["--bin-ms", "0.25"], "must be a multiple of refine_bin_us"),
+        (
+            ["--bin-ms", "0.25"],
+            "--bin-ms 250 must be a multiple of --refine-bin-ms 100 "
+            "(in µs; --bin-ms, --refine-bin-ms take ms)",
+        ),
         (["--name", "../x"], "name must be"),
     ],
 )

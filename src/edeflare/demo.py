@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
+from ._progress import progress_bar
 from .errors import EdeflareError
 from .events import slice_time
 from .io import write_events
@@ -125,8 +125,8 @@ def run_demo(
     size, start, end = seq.sensor_size, seq.t_start_us, seq.t_end_us
     inp, gt = seq.streams["input"], seq.streams["gt"]
     outputs: dict[str, np.ndarray] = {}
-    for name, method in tqdm(
-        _demo_methods().items(), desc="methods", leave=False, disable=None if progress else True
+    for name, method in progress_bar(
+        _demo_methods().items(), enabled=progress, desc="methods", leave=False
     ):
         outputs[name] = method(inp, size, rng=rng)
     write_events(out / "input.h5", inp, size)

@@ -37,8 +37,8 @@ import torch
 import torch.distributed as dist
 from torch import nn
 from torch.nn.parallel import DistributedDataParallel
-from tqdm import tqdm
 
+from ._progress import progress_bar
 from ._registry import Registry
 from .data.pairs import PairedWindows
 from .errors import EdeflareError
@@ -499,11 +499,8 @@ def train(
         else math.inf
     )
     stopped_at: int | None = None
-    bar = tqdm(
-        total=config.iterations,
-        initial=start,
-        unit="it",
-        disable=None if progress and env.main else True,
+    bar = progress_bar(
+        total=config.iterations, initial=start, unit="it", enabled=progress and env.main
     )
     for it, batch in _loader(train_set, config, env, start):
         lr = config.lr_at(it, epoch_len)

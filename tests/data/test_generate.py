@@ -336,6 +336,59 @@ def test_resume_after_sigkill_gives_the_uninterrupted_manifest(tmp_path):
     assert not [p for p in out.rglob("*") if ".partial" in p.name]
 
 
+_SMALL = ["--sequences", "6", "--test-sequences", "1", "--duration-ms", "40"]
+_SMALL += ["--sensor-size", "64x48", "--seed", "5"]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_ctrl_c_always_stops_simulate_and_a_rerun_completes(tmp_path):
+    """Ctrl-C at a terminal (SIGINT to the process group) while files are being written."""
+    recipe = RECIPES["eflare-mini"].replace(
+        sequences=6, test_sequences=1, duration_us=40_000, sensor_size=(64, 48), seed=5
+    )
+    full = tmp_path / "full"
+    generate_dataset(recipe, full, progress=False)
+    out = tmp_path / "data"
+    command = [sys.executable, "-m", "edeflare", "simulate", str(out), *_SMALL]
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2] / "src"))
+    made = 0
+    for workers in ("1", "2", "1"):
+        proc = subprocess.Popen(
+            [*command, "--workers", workers],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,  # its own process group, as a shell's job
+        )
+        deadline = time.monotonic() + 120
+        while len(list(out.rglob("seq_*.h5"))) <= made and time.monotonic() < deadline:
+            assert proc.poll() is None, proc.stderr.read()  # still running: not done yet
+            time.sleep(0.02)
+        pool = _children(proc.pid) if workers == "2" else []
+        os.killpg(proc.pid, signal.SIGINT)  # while it writes the next files
+        sent = time.monotonic()
+        _, err = proc.communicate(timeout=30)
+        assert time.monotonic() - sent < 10  # prompt, not at the end of the run
+        assert (proc.returncode, err) == (130, "edeflare: interrupted; rerun to resume\n"), err
+        deadline = time.monotonic() + 10
+        while any(_alive(w) for w in pool) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(_alive(w) for w in pool)  # the workers stopped too
+        now = len(list(out.rglob("seq_*.h5")))
+        assert made < now < recipe.sequences  # stopped before the end
+        made = now
+    manifest = out / "manifest.json"  # kept current while running: never complete so far
+    assert not manifest.exists() or json.loads(manifest.read_text())["complete"] is False
+    rerun = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr
+    assert f"{recipe.sequences - made} sequences made, {made} already there" in rerun.stdout
+    assert digests(out) == digests(full)  # every file once, whole, as an uninterrupted run's
+    assert (out / "manifest.json").read_bytes() == (full / "manifest.json").read_bytes()
+    assert not [p for p in out.rglob("*") if ".partial" in p.name]
+
+
 def test_bad_files_are_reported(tmp_path):
     path = sequence_path(tmp_path, TINY, 0)
     path.parent.mkdir(parents=True)

@@ -74,9 +74,12 @@ def test_missing_file(tmp_path, suffix):
     assert_read_fails(tmp_path / f"absent{suffix}", match="no such file")
 
 
-def test_directory_is_not_a_file(tmp_path):
-    (tmp_path / "dir.h5").mkdir()
-    assert_read_fails(tmp_path / "dir.h5", match="no such file")
+@pytest.mark.parametrize("name", ["dir.h5", "recordings"])
+def test_a_folder_is_called_a_folder(tmp_path, name):
+    folder = tmp_path / name
+    folder.mkdir()
+    exc = assert_read_fails(folder, match="is a folder")
+    assert str(exc) == f"{folder}: is a folder, not an event file" and exc.path == str(folder)
 
 
 @pytest.mark.parametrize("suffix", list_formats())
@@ -477,7 +480,7 @@ def test_target_inside_a_regular_file_raises_a_project_error(tmp_path):
 def test_target_that_is_a_directory_raises_a_project_error(tmp_path):
     target = tmp_path / "taken.npz"
     target.mkdir()
-    with pytest.raises(EventFileError, match="cannot write") as info:
+    with pytest.raises(EventFileError) as info:
         write_events(target, GOOD, SIZE)
-    assert str(target) in str(info.value)
-    assert files_in(tmp_path) == ["taken.npz"] and target.is_dir()
+    assert str(info.value) == f"{target}: is a folder, not an event file"
+    assert files_in(tmp_path) == ["taken.npz"] and target.is_dir() and not list(target.iterdir())

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import re
 import warnings
+from collections.abc import Iterable
 from typing import Any
 
 from .._registry import param_fields
-from ..errors import EventsError, ParameterError
+from ..errors import EdeflareError, EventsError, ParameterError
 from ..events import SensorSize, parse_sensor_size
 
 __all__ = [
@@ -18,6 +20,7 @@ __all__ = [
     "ms_to_us",
     "param_options",
     "sensor_size_arg",
+    "user_message",
     "warn_outside_span",
 ]
 
@@ -74,12 +77,21 @@ def warn_outside_span(source: Any, origin_us: int, start_us: int, end_us: int | 
     )
 
 
-def add_param_options(parser: argparse.ArgumentParser, params: type) -> None:
+def add_param_options(
+    parser: argparse.ArgumentParser, params: type, applies_to: Iterable[str] | None = None
+) -> None:
     """Add a parameter dataclass's options (fields with ``cli`` metadata) as a group.
 
     The options default to ``SUPPRESS``: absent unless given, so a misplaced one
     is caught (:func:`param_options`). Help texts end with the default.
+
+    ``applies_to``: the ``--method`` values that take these parameters (None:
+    every run of the command). The parser records the group, so that an error
+    about one of its parameters names the option (:func:`user_message`).
     """
+    groups = parser.get_default(_PARAM_GROUPS) or ()
+    methods = None if applies_to is None else tuple(applies_to)
+    parser.set_defaults(**{_PARAM_GROUPS: (*groups, (params, methods))})
     group = parser.add_argument_group(getattr(params, "cli_title", params.__name__))
     for f, opt in param_fields(params):
         if opt is None:
@@ -119,3 +131,93 @@ def param_options(
             raise ParameterError(f"{flag} applies to --method {' or '.join(applies_to)}")
         out[f.name] = opt.to_param(value)
     return out
+
+
+# ----------------------------------------------------------------------------- error messages
+
+_PARAM_GROUPS = "_param_groups"  # the namespace default holding (dataclass, methods) pairs
+
+
+def _option_names(
+    args: argparse.Namespace, parser: argparse.ArgumentParser | None
+) -> tuple[dict[str, tuple[str, str]], dict[str, tuple[str, str]]]:
+    """The Python names of a command's options: ``{name: (flag, unit)}``, in two kinds.
+
+    The first holds the fields of the parameter dataclasses that apply to this
+    run (their ``--method``; :func:`add_param_options`); the second the command's
+    own options by destination (``max_lag_ms`` for ``--max-lag-ms``), with
+    ``X_us`` for an option ``--X-ms`` (unit ``"ms"``).
+    """
+    declared: dict[str, tuple[str, str]] = {}
+    for params, methods in getattr(args, _PARAM_GROUPS, ()):
+        if methods is not None and getattr(args, "method", None) not in methods:
+            continue
+        for f, opt in param_fields(params):
+            if opt is not None:
+                declared[f.name] = (opt.flag, opt.unit)
+    own: dict[str, tuple[str, str]] = {}
+    for action in parser._actions if parser is not None else ():
+        flags = [s for s in action.option_strings if s.startswith("--")]
+        if not flags or action.dest in (argparse.SUPPRESS, "help"):
+            continue
+        own[action.dest] = (flags[0], "")
+        if action.dest.endswith("_ms"):
+            own[action.dest[:-3] + "_us"] = (flags[0], "ms")
+    return declared, own
+
+
+def _name_pattern(name: str, anywhere: bool) -> re.Pattern[str]:
+    """Where ``name`` stands as an identifier: not inside a word, an option, a path or quotes."""
+    before = r"(?<![\w\-./\\'\"])" if anywhere else r"^"
+    return re.compile(before + re.escape(name) + r"(?![\w\-/\\'\"]|\.\w)")
+
+
+def name_options(
+    message: str, declared: dict[str, tuple[str, str]], own: dict[str, tuple[str, str]]
+) -> str:
+    """``message`` with the Python names of options replaced by the options' flags.
+
+    A declared parameter (``keep_threshold``) is replaced wherever it stands as
+    an identifier; a command's own option too when its name looks like one
+    (``max_lag_us``: an underscore or a digit), else only where it opens the
+    message (``workers must be ...``), so that plain words stay words. A
+    parameter kept in µs but given in ms (``merge_us``, ``--efr-merge-ms``)
+    gets a note that the values shown are µs.
+
+    Examples
+    --------
+    >>> declared = {"merge_us": ("--efr-merge-ms", "ms")}
+    >>> name_options("merge_us must be >= 0, got -5000", declared, {})
+    '--efr-merge-ms must be >= 0, got -5000 (in µs; --efr-merge-ms takes ms)'
+    >>> own = {"workers": ("--workers", ""), "sequences": ("--sequences", "")}
+    >>> name_options("workers must be >= 1; more workers than sequences", {}, own)
+    '--workers must be >= 1; more workers than sequences'
+    """
+    names = {
+        name: (flag, unit, bool(re.search(r"[_\d]", name))) for name, (flag, unit) in own.items()
+    }
+    names |= {name: (flag, unit, True) for name, (flag, unit) in declared.items()}
+    in_ms: list[str] = []
+    for name in sorted(names, key=len, reverse=True):  # longest first
+        flag, unit, anywhere = names[name]
+        message, count = _name_pattern(name, anywhere).subn(flag, message)
+        if count and unit == "ms" and flag not in in_ms:
+            in_ms.append(flag)
+    if in_ms:
+        in_ms.sort(key=message.index)  # as they appear
+        message += f" (in µs; {', '.join(in_ms)} {'takes' if len(in_ms) == 1 else 'take'} ms)"
+    return message
+
+
+def user_message(
+    exc: EdeflareError, args: argparse.Namespace, parser: argparse.ArgumentParser | None
+) -> str:
+    """The line to show for a user error of a command, options named as the user types them.
+
+    A :class:`~edeflare.errors.ParameterError` raised by the library names
+    parameters by their Python names; here they become the command's options
+    (:func:`name_options`). Other errors (files, events) are shown unchanged.
+    """
+    if not isinstance(exc, ParameterError):
+        return str(exc)
+    return name_options(str(exc), *_option_names(args, parser))

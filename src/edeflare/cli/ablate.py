@@ -65,7 +65,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("--sequences", type=int, help="training sequences per variant")
     p.add_argument("--workers", type=int, default=1, help="data generation processes")
     p.add_argument("--seed", type=int, default=0, help="seeds the model decoders")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resumes=True)
 
 
 def run(args: argparse.Namespace) -> int:

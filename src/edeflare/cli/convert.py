@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from tqdm import tqdm
 
+from .._progress import progress_bar
 from ..events import center_crop, crop
 from ._common import (
     GROUP_HELP,
@@ -18,6 +19,9 @@ from ._common import (
     sensor_size_arg,
     warn_outside_span,
 )
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 HELP = (
     "Convert between event formats (by suffix), streaming, optionally cropped. Times are in "
@@ -92,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
                     events, _ = crop(events, size, *args.crop)
             yield events
 
-    with tqdm(total=src.n_events, unit="ev", unit_scale=True, disable=None, leave=False) as bar:
+    with progress_bar(total=src.n_events, unit="ev", unit_scale=True, leave=False) as bar:
         count = write_event_chunks(args.output, chunks(bar), out_size, evt_version=args.evt_version)
     if count == 0 and origin is not None and (rel_lo is not None or rel_hi is not None):
         hi = None if rel_hi is None else origin + rel_hi

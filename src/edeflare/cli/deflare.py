@@ -66,8 +66,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         action="store_true",
         help="also print the speed: run time, real-time factor, per-window latency, peak memory",
     )
-    for params, _ in _param_groups():  # --model, --efr-*, --pfd-*, --voxel-*
-        add_param_options(p, params)
+    for params, methods in _param_groups():  # --model, --efr-*, --pfd-*, --voxel-*
+        add_param_options(p, params, methods)
     p.set_defaults(func=run)
 
 

@@ -6,8 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
+from .._progress import progress_bar
 from ..errors import EdeflareError
 from ._common import GROUP_HELP, SIZE_HELP, sensor_size_arg
 
@@ -43,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     src = open_events(args.file, args.sensor_size, group=args.group)
     n = n_on = 0
     first = last = None
-    with tqdm(total=src.n_events, unit="ev", unit_scale=True, disable=None, leave=False) as bar:
+    with progress_bar(total=src.n_events, unit="ev", unit_scale=True, leave=False) as bar:
         for chunk in src.chunks():
             n += chunk.size
             n_on += int(chunk["p"].sum())

@@ -93,7 +93,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "--shard", default="0/1", metavar="I/N", help="make sequences with index %% N == I"
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resumes=True)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -151,7 +151,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="with --init: train only the layers the preset adds (e.g. mask.pixel's "
         "refinement on mask.fast weights)",
     )
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resumes=True)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
+from .._progress import progress_bar
 from ..errors import EdeflareError
 from ._common import GROUP_HELP, SIZE_HELP, ms_to_us, sensor_size_arg, warn_outside_span
 
@@ -59,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     start = origin + (0 if args.start_ms is None else ms_to_us(args.start_ms))
     end = start + window * args.count
     frames, labels, counts = [], [], []
-    with tqdm(total=args.count, unit="frame", disable=None, leave=False) as bar:
+    with progress_bar(total=args.count, unit="frame", leave=False) as bar:
         for w_start, events in src.windows(window, start_us=start, end_us=end):
             frames.append(event_frame(events, size, background=args.background))
             counts.append(events.size)

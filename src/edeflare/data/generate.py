@@ -58,7 +58,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -70,6 +69,7 @@ from typing import Any
 
 import numpy as np
 
+from .._interrupt import check_interrupt, ignore_interrupts, interruptible, sigint_blocked
 from .._version import __version__
 from ..errors import EventFileError, ParameterError
 from ..events import SensorSize
@@ -286,6 +286,7 @@ def _watch_parent(parent: int) -> None:
 
 
 def _init_worker(parent: int, threads: int) -> None:
+    ignore_interrupts()  # Ctrl-C at a terminal reaches every worker: the parent decides
     import numba
 
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
@@ -415,8 +416,7 @@ def generate_dataset(
         entries[index] = entry
         for k in STAGES:
             stage_seconds[k] += timings.get(k, 0.0)
-        if bar is not None:
-            bar.update(1)
+        bar.update(1)
         if on_sequence is not None:
             on_sequence(index, timings)
         now = time.perf_counter()
@@ -425,15 +425,16 @@ def generate_dataset(
             last_write = now
 
     try:
-        if workers == 1 or len(todo) <= 1:
-            for i in todo:
-                entry, timings = _work(recipe, i, str(out))
-                finished(i, entry, timings)
-        else:
-            _run_pool(recipe, todo, out, workers, finished)
+        with interruptible():  # Ctrl-C stops the run even if a finaliser swallows it
+            if workers == 1 or len(todo) <= 1:
+                for i in todo:
+                    check_interrupt()
+                    entry, timings = _work(recipe, i, str(out))
+                    finished(i, entry, timings)
+            else:
+                _run_pool(recipe, todo, out, workers, finished)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     final_entries = dict(entries)
     if shard_n > 1:  # other shards' files, if they are all there
         for i in range(recipe.sequences):
@@ -485,29 +486,35 @@ def _run_pool(
             while queue or pending:
                 while queue and len(pending) < 2 * workers:  # bounded: cancel stays quick
                     i = queue.pop(0)
-                    pending[pool.submit(_work, recipe, i, str(out))] = i
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                    with sigint_blocked():  # a worker started here starts deaf to Ctrl-C
+                        pending[pool.submit(_work, recipe, i, str(out))] = i
+                done, _ = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+                check_interrupt()
                 for fut in sorted(done, key=lambda f: pending[f]):
                     i = pending.pop(fut)
                     entry, timings = fut.result()
                     finished(i, entry, timings)
-        except BaseException:
+        except Exception:
             for fut in pending:
                 fut.cancel()
             raise
+        except BaseException:  # Ctrl-C: the sequences in flight stop too
+            _stop_workers(pool)  # (their futures fail with the pool; none is cancelled first,
+            raise  # which the pool's own clean-up would trip over)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Terminate the pool's workers now (their files are temporary until written whole)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(5)
 
 
 def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:
-    if not enabled:
-        return None
-    from tqdm import tqdm
+    from .._progress import progress_bar  # no bar when stderr is not a terminal (logs, nohup)
 
-    return tqdm(
-        total=total,
-        initial=initial,
-        desc=name,
-        unit="seq",
-        file=sys.stderr,
-        dynamic_ncols=True,
-        disable=None,  # no bar when stderr is not a terminal (logs, nohup)
+    return progress_bar(
+        total=total, initial=initial, enabled=enabled, desc=name, unit="seq", dynamic_ncols=True
     )

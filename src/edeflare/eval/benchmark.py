@@ -26,8 +26,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
+from .._progress import progress_bar
 from ..errors import ParameterError
 from ..events import SensorSize, concat_events, empty_events, iter_chunk_windows
 from ..io import open_events
@@ -205,9 +205,7 @@ def benchmark(
     per_file: dict[str, dict[str, Summary]] = {row: {} for row in built}
     seconds = dict.fromkeys(built, 0.0)
     windows = stream_us = 0
-    bar = tqdm(
-        total=len(paths) * len(built), unit="run", disable=None if progress else True, leave=False
-    )
+    bar = progress_bar(total=len(paths) * len(built), enabled=progress, unit="run", leave=False)
     for k, path in enumerate(paths):
         span = sequence_span(path)
         if span is None:

@@ -20,8 +20,8 @@ from itertools import zip_longest
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
+from .._progress import progress_bar
 from ..errors import EventFileError
 from ..events import SensorSize, empty_events, iter_time_windows, window_start_for
 from ..io import list_formats, open_events
@@ -351,7 +351,7 @@ def evaluate(
     """
     per_file: dict[str, dict[str, Summary]] = {}
     jobs = [(name, pair) for name, path in preds.items() for pair in pair_files(gt, path)]
-    with tqdm(total=len(jobs), unit="file", disable=None if progress else True, leave=False) as bar:
+    with progress_bar(total=len(jobs), enabled=progress, unit="file", leave=False) as bar:
         for name, (stem, gt_path, pred_path) in jobs:
             bar.set_description(f"{name}: {stem}")
             segments = evaluate_files(

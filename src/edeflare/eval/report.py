@@ -40,8 +40,8 @@ from typing import Any
 
 import numpy as np
 from PIL import Image
-from tqdm import tqdm
 
+from .._progress import progress_bar
 from .._version import __version__
 from ..errors import EventFileError
 from ..io._atomic import atomic_path
@@ -306,7 +306,7 @@ def _write_real(
     """``real_<name>.png`` for each real recording (``real_<name>_<k>.png`` for a name
     seen before): its figure name and its reconstructions before and after."""
     done: list[tuple[str, RealReconstruction]] = []
-    for path in tqdm(paths, desc="real recordings", disable=not progress or not paths):
+    for path in progress_bar(paths, enabled=progress and bool(paths), desc="real recordings"):
         r = reconstruct_recording(path, methods)
         png = f"real_{Path(r.name).stem}.png"
         taken = {name for name, _ in done}

@@ -105,6 +105,9 @@ def list_formats() -> list[str]:
 
 
 def _format_for(path: Path) -> _Format:
+    """The format of an event file by its suffix (a folder is an error, whatever its name)."""
+    if path.is_dir():
+        raise EventFileError(path, "is a folder, not an event file")
     suffix = path.suffix.lower()
     for fmt in _FORMATS:
         if suffix in fmt.suffixes:

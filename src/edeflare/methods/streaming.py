@@ -17,8 +17,8 @@ from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
+from .._progress import progress_bar
 from ..errors import ParameterError
 from ..events import EVENT_DTYPE, SensorSize, check_events, concat_events
 from .base import EMPTY, Method, Streamer, create_method
@@ -212,7 +212,7 @@ def deflare_file(
     evt_version : {"evt2", "evt3"}
         Encoding of ``.raw`` outputs (see :func:`edeflare.io.write_event_chunks`).
     progress : bool, optional
-        Show a progress bar; ``None`` shows it on a terminal only.
+        False: no progress bar; otherwise one is shown on a terminal only.
 
     Returns
     -------
@@ -252,14 +252,13 @@ def deflare_file(
         m = create_method(method, **dict(params or {}))
     src = open_events(in_path, sensor_size, group=group)
     size = src.sensor_size
-    disable = None if progress is None else not progress
     prepared = None
     if m.needs_prepass:
-        with tqdm(
+        with progress_bar(
             total=src.n_events,
             unit="ev",
             unit_scale=True,
-            disable=disable,
+            enabled=progress,
             leave=False,
             desc="first pass",
         ) as bar:
@@ -273,14 +272,14 @@ def deflare_file(
     run = StreamRun(m, size, rng=rng, prepared=prepared, max_lag_us=max_lag_us)
     t_begin = time.perf_counter()
 
-    def windows(bar: tqdm) -> Iterator[tuple[int, np.ndarray]]:
+    def windows(bar: Any) -> Iterator[tuple[int, np.ndarray]]:
         for start, events in src.windows(window_us):
             bar.update(events.size)
             yield start, events
 
     desc = m.name or type(m).__name__
-    with tqdm(
-        total=src.n_events, unit="ev", unit_scale=True, disable=disable, leave=False, desc=desc
+    with progress_bar(
+        total=src.n_events, unit="ev", unit_scale=True, enabled=progress, leave=False, desc=desc
     ) as bar:
         n_out = write_event_chunks(
             out_path, run.outputs(windows(bar), window_us), size, evt_version=evt_version

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
 import numpy as np
@@ -40,16 +39,15 @@ def _check_mask(mask: Any, sensor_size: SensorSize | None) -> tuple[np.ndarray, 
 
 
 def _progress(total: int | None, desc: str, enabled: bool, unit: str = "ev") -> Any:
-    from tqdm import tqdm
+    from .._progress import progress_bar
 
-    return tqdm(
+    return progress_bar(
         total=total,
+        enabled=enabled,
         desc=desc,
         unit=unit,
         unit_scale=unit == "ev",
-        disable=None if enabled else True,
         leave=False,
-        file=sys.stderr,
         dynamic_ncols=True,
     )
 

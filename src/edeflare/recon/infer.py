@@ -128,8 +128,7 @@ def reconstruct_file(
     of recording); ``fps`` defaults to real time. ``group``: the event group
     of an HDF5 file holding several (e.g. ``"input"`` of a sequence file).
     """
-    from tqdm import tqdm
-
+    from .._progress import progress_bar
     from ..io import open_events
     from ..viz import save_animation
 
@@ -142,13 +141,13 @@ def reconstruct_file(
 
     def gray() -> Iterator[np.ndarray]:
         nonlocal count
-        with tqdm(
+        with progress_bar(
             total=src.n_events,
+            enabled=progress,
             unit="ev",
             unit_scale=True,
             leave=False,
             desc="reconstruct",
-            disable=None if progress is None else not progress,
         ) as bar:
 
             def windows() -> Iterator[tuple[int, np.ndarray]]:

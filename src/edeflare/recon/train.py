@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
+from .._progress import progress_bar
 from ..errors import EdeflareError
 from ..io._atomic import atomic_path
 from ..train import _append_csv, _truncate_csv
@@ -58,7 +58,7 @@ class ReconTrainConfig:
 def _clip_pool(config: ReconTrainConfig, progress: bool) -> tuple[torch.Tensor, torch.Tensor]:
     voxels, images = [], []
     seeds = np.random.SeedSequence(config.seed).spawn(config.clips)
-    for k in tqdm(range(config.clips), desc="simulating clips", disable=not progress):
+    for k in progress_bar(range(config.clips), enabled=progress, desc="simulating clips"):
         clip = draw_clip(
             (config.width, config.height),
             config.windows,
@@ -158,7 +158,7 @@ def train_reconstructor(
     flips = np.random.default_rng(config.seed + 2).integers(0, 4, size=config.iterations)
     model.train()
     t0 = time.perf_counter()
-    bar = tqdm(range(start, config.iterations), desc="training", disable=not progress)
+    bar = progress_bar(range(start, config.iterations), enabled=progress, desc="training")
     for it in bar:
         idx = torch.from_numpy(plan[it])
         v, im = voxels[idx], images[idx]

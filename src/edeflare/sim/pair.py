@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Protocol
 import numba
 import numpy as np
 
+from .._interrupt import check_interrupt
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size
 from ._validation import SimError, check_choice
 from .camera import camera_simulator, sensor_pair
@@ -157,6 +158,7 @@ def run_frames(
         if item is None:
             break
         t_us, current = item
+        check_interrupt()  # a Ctrl-C a finaliser swallowed stops the run here
         for obs in observers:
             with timer(obs.stage):
                 obs.frame(t_us, current, prev)
