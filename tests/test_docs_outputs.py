@@ -223,6 +223,8 @@ class Workspace:
         for earlier in self.steps[: self.steps.index(step) + 1]:
             if earlier.id in self.outputs or self.skipped(earlier):
                 continue
+            if earlier is not step and earlier.text.startswith(SLOW_STEPS):
+                continue  # a slow step's output is no later step's input
             cwd = Path.cwd()
             os.chdir(self.folder)
             try:
@@ -289,8 +291,23 @@ SKIPS = {
 }
 
 
+# Steps of the fast pages that take more than about 20 s on a loaded 2-core machine.
+SLOW_STEPS = ("edeflare deflare rotating_light.raw paper.h5 --model eflare",)
+
+
 def _steps(page: str, python: bool) -> list[Step]:
     return page_steps(page, python)
+
+
+def _params(page: str, python: bool) -> list:
+    return [
+        pytest.param(
+            step,
+            id=step.id,
+            marks=[pytest.mark.slow] if step.text.startswith(SLOW_STEPS) else [],
+        )
+        for step in page_steps(page, python)
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -303,7 +320,7 @@ def prophesee(tmp_path_factory) -> Workspace:
     return Workspace(folder, _steps(PROPHESEE, python=True), SKIPS.get(PROPHESEE, {}))
 
 
-@pytest.mark.parametrize("step", _steps(PROPHESEE, python=True), ids=lambda s: s.id)
+@pytest.mark.parametrize("step", _params(PROPHESEE, python=True))
 def test_prophesee_tutorial(prophesee, step):
     check(prophesee, step)
 
@@ -317,7 +334,7 @@ def deflaring(tmp_path_factory) -> Workspace:
     return Workspace(folder, _steps(DEFLARING, python=False), {})
 
 
-@pytest.mark.parametrize("step", _steps(DEFLARING, python=False), ids=lambda s: s.id)
+@pytest.mark.parametrize("step", _params(DEFLARING, python=False))
 def test_deflaring_page(deflaring, step):
     check(deflaring, step)
 
@@ -378,8 +395,23 @@ def test_every_page_with_commands_is_checked():
 # --- numbers in tables and prose -----------------------------------------------------------
 
 
+def _unfenced(text: str) -> str:
+    """The text without its fenced blocks (a ``# comment`` in a code block is no heading)."""
+    kept, fence = [], None
+    for line in text.splitlines():
+        marker = line.lstrip()[:3]
+        if fence is None and marker in ("```", "~~~"):
+            fence = marker
+        elif fence is not None and marker == fence:
+            fence = None
+        elif fence is None:
+            kept.append(line)
+    return "\n".join(kept)
+
+
 def _section(text: str, heading: str) -> str:
     """The text under a heading, up to the next heading of the same or a higher level."""
+    text = _unfenced(text)
     m = re.search(rf"^(#+) {re.escape(heading)}\s*$", text, re.M)
     assert m, f"no heading {heading!r}"
     level = len(m.group(1))
@@ -441,7 +473,7 @@ def test_readme_table_is_todays(real_scores):
     table = _rows(_section((ROOT / "README.md").read_text(), "Where the default stands"))
     assert len(table) >= 8
     for method, gen3, davis in table:
-        name = _README_NAMES.get(method.strip("*"), method.strip("*"))
+        name = _README_NAMES.get(method.replace("*", ""), method.replace("*", ""))
         g = _score_cells(real_scores["prophesee_gen3_rotating_light"][name], False)
         d = _score_cells(real_scores["davis346_flicker_lamps"][name], True)
         assert gen3.replace("*", "") == " / ".join(g), (method, gen3, g)
@@ -632,7 +664,8 @@ def test_readme_summarises_every_command():
     from edeflare.cli import build_parser
 
     sub = next(a for a in build_parser()._actions if hasattr(a, "choices") and a.choices)
-    block = _section((ROOT / "README.md").read_text(), "Commands")
+    text = (ROOT / "README.md").read_text()
+    block = text[text.index("\n## Commands\n") :].split("\n## ")[1]  # the fenced summary
     missing = [name for name in sub.choices if f"edeflare {name} " not in block]
     assert not missing, f"the README's command summary lacks {missing}"
 
@@ -655,3 +688,24 @@ def test_product_pages_hold_no_history(page):
     found = sorted({m.group(0) for m in _HISTORY.finditer(text)})
     assert not found, f"{page} mentions {found}: history belongs in CHANGELOG.md"
     assert len(text.splitlines()) <= 400 or page != "docs/benchmarks.md"
+
+
+def test_codec_decoders_table_is_todays():
+    """docs/concepts/codec.md: the two decoders on one window of the Gen3 recording."""
+    import edeflare
+    from edeflare.eval.metrics import segment_metrics
+    from edeflare.voxel import decode, decode_keep, encode
+
+    events, size = edeflare.read_events(real_data_dir() / "prophesee_gen3_rotating_light.raw")
+    t0 = 1_320_000
+    window = events[(events["t"] >= t0) & (events["t"] < t0 + 20_000)]
+    grid = encode(window, size, t0, 20_000)
+    rows = {r[0]: r for r in _rows((DOCS / "concepts" / "codec.md").read_text())}
+    out = decode(grid, t0, 20_000, rng=0)
+    m = segment_metrics(window, out, size, t0)
+    assert rows["`paper`"][1:] == [
+        f"{out.size:,}", f"{m.chamfer:.4f}", f"{m.gaussian:.4f}", f"{m.mse:.0f}",
+        f"{m.pmse_2:.4f}", f"{m.pmse_4:.4f}", f"{m.r_f1:.3f}", f"{m.t_f1:.3f}", f"{m.tp_f1:.3f}",
+    ]  # fmt: skip
+    kept = decode_keep(grid, window, t0, 20_000, rng=0)
+    assert rows["`keep`"][1] == f"{kept.size:,} (the input)" and kept.size == window.size
