@@ -268,6 +268,7 @@ DEFLARING = "docs/deflaring.md"
 SIMULATE = "docs/tutorials/simulate-dataset.md"
 TRAIN = "docs/tutorials/train-torchrun.md"
 PAIRED = "docs/tutorials/paired-benchmark.md"
+ABLATION = "docs/ablation.md"
 
 SKIPS = {
     SIMULATE: {
@@ -383,9 +384,15 @@ def test_paired_benchmark_tutorial(paired, step):
     check(paired, step)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("step", _steps(ABLATION, python=False), ids=lambda s: s.id)
+def test_ablation_page(tmp_path_factory, step):
+    check(Workspace(tmp_path_factory.mktemp("ablation"), [step], {}), step)
+
+
 def test_every_page_with_commands_is_checked():
     """A page that shows an `edeflare` command's output is in this module."""
-    checked = {PROPHESEE, DEFLARING, SIMULATE, TRAIN, PAIRED}
+    checked = {PROPHESEE, DEFLARING, SIMULATE, TRAIN, PAIRED, ABLATION}
     for path in [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]:
         rel = str(path.relative_to(ROOT))
         shown = [s for s in page_steps(rel, python=False) if s.expected]
