@@ -223,7 +223,7 @@ class Workspace:
         for earlier in self.steps[: self.steps.index(step) + 1]:
             if earlier.id in self.outputs or self.skipped(earlier):
                 continue
-            if earlier is not step and earlier.text.startswith(SLOW_STEPS):
+            if earlier.id != step.id and earlier.text.startswith(SLOW_STEPS):
                 continue  # a slow step's output is no later step's input
             cwd = Path.cwd()
             os.chdir(self.folder)
