@@ -28,7 +28,8 @@ def _load_generator():
 
 
 def _markdown_files() -> list[Path]:
-    return [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]
+    cards = sorted((ROOT / "src" / "edeflare" / "assets").glob("*.md"))
+    return [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted(DOCS.rglob("*.md")), *cards]
 
 
 def _strip_fences(text: str) -> str:
