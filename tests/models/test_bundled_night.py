@@ -132,3 +132,28 @@ def test_the_default_removes_the_streaks_and_ghost_ring_of_the_reference_picture
     assert default.light_kept >= bound["light_kept"]
     assert support.flare_removed < 0.85 and support.light_kept < 0.90
     assert before.flare_removed < 0.40 and default.combined > support.combined + 0.1
+
+
+def _bounds_sentence() -> str:
+    """The card's sentence of the bounds, made from the bounds file."""
+    lit, dark, ref = BOUNDS["with_lights"], BOUNDS["without_lights"], BOUNDS["reference_window"]
+    gen3, davis = lit["prophesee_gen3_rotating_light.raw"], lit["davis346_flicker_lamps.aedat4"]
+
+    def pct(v: float) -> str:
+        return f"{100 * v:g} %"
+
+    kept = ", ".join(pct(dark[k]["kept"]) for k in (
+        "davis346_street_cars.aedat4", "davis346_lowlight_cradle.aedat4",
+        "prophesee_gen41_street.raw",
+    ))  # fmt: skip
+    return (
+        f"Gen3 removed >= {pct(gen3['flare_removed'])}, light >= {pct(gen3['light_kept'])}, "
+        f"combined >= {gen3['combined']:g}; DAVIS lamps >= {pct(davis['flare_removed'])}, "
+        f">= {pct(davis['light_kept'])}, >= {davis['combined']:g}; kept without a light >= "
+        f"{kept}; reference window >= {pct(ref['flare_removed'])}, >= {pct(ref['light_kept'])}."
+    )
+
+
+def test_the_card_lists_the_bounds_the_tests_hold():
+    card = (Path(edeflare.__file__).parent / "assets" / "night.md").read_text(encoding="utf-8")
+    assert _bounds_sentence() in " ".join(card.split())
