@@ -65,12 +65,17 @@ class _Reorder:
     time, so their concatenation is the stable sort of all outputs (the
     one-pass result) as long as nothing is dropped. An output older than
     what was already released (it lagged more than ``max_lag_us``) is dropped
-    and counted.
+    and counted. ``batched`` releases only once enough outputs arrived (linear
+    work over a file); otherwise every push releases what is final (a live
+    filter's latency, at the cost of merging with what is held each time).
     """
 
-    def __init__(self, streamer: Streamer, max_lag_us: int | None) -> None:
+    def __init__(
+        self, streamer: Streamer, max_lag_us: int | None, *, batched: bool = True
+    ) -> None:
         self.streamer = streamer
         self.max_lag_us = max_lag_us
+        self.batched = batched
         self.held = EMPTY  # sorted
         self.new: list[np.ndarray] = []
         self.n_new = 0
@@ -96,7 +101,7 @@ class _Reorder:
             self.new.append(outputs)
             self.n_new += outputs.size
         # Release in batches at least as large as what is held: linear work overall.
-        if self.n_new < max(_REORDER_BATCH, self.held.size):
+        if self.batched and self.n_new < max(_REORDER_BATCH, self.held.size):
             return EMPTY
         mark = self.streamer.safe_time_us(until_us)
         if self.max_lag_us is not None:
