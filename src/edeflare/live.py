@@ -158,7 +158,7 @@ class Deflarer:
         self._prepass: list[np.ndarray] = []  # the chunks of the prepass
         self._held = np.zeros(0, dtype=EVENT_DTYPE)  # the events of the latest microsecond
         self._until: int | None = None  # every event fed so far is before this
-        self._first_t: int | None = None
+        self._prepass_end: int | None = None
         self._last_t: int | None = None
         self._ready: list[np.ndarray] = []
         self._flushed = False
@@ -214,14 +214,13 @@ class Deflarer:
                 f"the previous chunk's last event at t={self._last_t} us"
             )
         events = events.copy()
-        if self._first_t is None:
-            self._first_t = first
         self._last_t = last
         self.events_in += events.size
-        if self._streamer is None:  # the prepass
+        if self._streamer is None:  # the prepass: [first event, first event + prepass_us)
             self._prepass.append(events)
-            assert self.prepass_us is not None
-            if last >= self._first_t + self.prepass_us:
+            if self._prepass_end is None:
+                self._prepass_end = first + (self.prepass_us or 0)
+            if last >= self._prepass_end:
                 self._end_prepass(final=False)
             return
         self._push(events)
@@ -269,8 +268,7 @@ class Deflarer:
             self._end_prepass(final=True)
         if self._streamer is not None:
             if self._held.size:
-                assert self._last_t is not None
-                self._feed(self._held, self._last_t + 1)
+                self._feed(self._held, int(self._held["t"][-1]) + 1)
                 self._held = self._held[:0]
             tail = self._streamer.flush()
             if self._reorder is not None:
@@ -292,9 +290,7 @@ class Deflarer:
         self._prepass = []
         basis = buffered
         if not final:
-            assert self._first_t is not None and self.prepass_us is not None
-            end = int(np.searchsorted(buffered["t"], self._first_t + self.prepass_us, "left"))
-            basis = buffered[:end]
+            basis = buffered[: int(np.searchsorted(buffered["t"], self._prepass_end, "left"))]
         self._start(self.method.prepare([basis], self.sensor_size))
         self._push(buffered)
 

@@ -23,12 +23,15 @@ Examples
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .errors import EventsError, ParameterError
 from .events import EVENT_DTYPE, SensorSize, check_events, check_sensor_size
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .methods import Method
 
 __all__ = ["Deflare", "from_structured", "to_structured"]
 
@@ -243,11 +246,13 @@ class Deflare:
     """
 
     sensor_size: tuple[int, ...]
-    method: Any
+    method: str | Method
     params: dict[str, Any] = dataclasses.field(hash=False)
-    _method: Any = dataclasses.field(init=False, repr=False, compare=False)
+    _method: Method | None = dataclasses.field(init=False, repr=False, compare=False)
 
-    def __init__(self, sensor_size: Any, method: Any = "model", **params: Any) -> None:
+    def __init__(
+        self, sensor_size: tuple[int, ...], method: str | Method = "model", **params: Any
+    ) -> None:
         from .methods import Method, create_method
 
         size = tuple(int(v) for v in _sensor_size(sensor_size)) + tuple(
