@@ -74,7 +74,7 @@ import numpy as np
 
 from ..errors import EventFileError, ParameterError
 from ..events import SensorSize, check_events, check_sensor_size, window_start_for
-from ..lights import Lights, detect_lights, load_lights
+from ..lights import Lights, detect_lights, load_lights, measure_regions
 
 __all__ = [
     "MethodScore",
@@ -424,6 +424,7 @@ def score_recording(
     method_params: Mapping[str, Mapping[str, Any]] | None = None,
     rng: np.random.Generator | int | None = 0,
     phases: int = 1,
+    measure: bool = False,
 ) -> ScoreReport:
     """Score methods (run now) and de-flared files on a real recording without ground truth.
 
@@ -436,8 +437,9 @@ def score_recording(
     preds : mapping of str to path-like, optional
         Name -> a de-flared version of the recording (same sensor size).
     lights : path-like or Lights, optional
-        An annotation (:func:`load_lights`); None detects the lights per
-        window (:func:`detect_lights`, ``max_sources`` of them).
+        An annotation (:func:`~edeflare.lights.load_lights`); None detects the
+        lights per window (:func:`~edeflare.lights.detect_lights`, ``max_sources``
+        of them).
     window_us : int
         Window of the count comparison and of detection.
     overrides : mapping, optional
@@ -447,6 +449,11 @@ def score_recording(
         Method name -> parameters for :func:`edeflare.create_method`.
     rng : numpy.random.Generator or int, optional
         Seeds methods that draw.
+    measure : bool
+        With detected lights: measure how far each one's halo and ghost reach in
+        the recording (:func:`~edeflare.lights.measure_regions`) instead of the
+        fixed factors. Experimental: right on synthetic flare, not yet on the
+        annotated real recordings (``docs/scoring.md``).
     phases : int
         Run each method on the recording delayed by ``k * window_us // phases``
         for ``k = 0 .. phases - 1`` (then undone) and report the mean scores,
@@ -496,6 +503,9 @@ def score_recording(
             the_lights = detect_lights(events, size, window_us, max_sources=max_sources)
         except ParameterError as exc:
             raise EventFileError(recording, str(exc)) from None
+        if measure:
+            # where the flare reaches, from the recording (the factors where it shows none)
+            the_lights = measure_regions(events, size, the_lights)
         source = "detect"
     if overrides:
         try:

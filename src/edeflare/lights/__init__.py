@@ -7,6 +7,8 @@
   (:attr:`LightSource.shape`);
 - :func:`detect_light_source` (the brightest compact regions of the event
   density) and :func:`detect_lights` (the same, window by window);
+  :func:`measure_regions` / :func:`flare_reach`: how far each source's halo and
+  ghost reach, from the radial event rate around it;
 - :func:`window_lights`: the cells of a window that hold a light, the cheap test
   a mask model's rules (:mod:`edeflare.rules`) make in every window.
 
@@ -25,11 +27,13 @@ from __future__ import annotations
 
 from .cells import window_lights
 from .detect import count_map_of, detect_light_source, detect_lights
+from .reach import FlareReach, flare_reach, measure_regions
 from .shapes import Circle, Polygon, Shape, light_mask, parse_light
 from .source import Lights, LightSource, bundled_lights, load_lights, parse_lights, save_lights
 
 __all__ = [
     "Circle",
+    "FlareReach",
     "LightSource",
     "Lights",
     "Polygon",
@@ -38,8 +42,10 @@ __all__ = [
     "count_map_of",
     "detect_light_source",
     "detect_lights",
+    "flare_reach",
     "light_mask",
     "load_lights",
+    "measure_regions",
     "parse_light",
     "parse_lights",
     "save_lights",
