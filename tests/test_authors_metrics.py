@@ -29,6 +29,7 @@ from edeflare.eval.authors import (
 )
 from edeflare.eval.benchmark import benchmark
 from edeflare.eval.evaluate import evaluate, evaluate_events
+from edeflare.eval.report import write_report
 from edeflare.events import make_events, merge_events
 from edeflare.io import write_events
 from edeflare.io.dsec import write_dsec_groups
@@ -365,7 +366,7 @@ def split(tmp_path):
     return tmp_path
 
 
-def test_benchmark_scores_each_sequence_whole(split):
+def test_benchmark_scores_each_sequence_whole(split, tmp_path):
     outputs = {}
 
     def keep(*, row, path, gt, output, **_):
@@ -389,6 +390,10 @@ def test_benchmark_scores_each_sequence_whole(split):
     default = benchmark(split, {"raw": "raw"}, progress=False)
     assert default.evaluation.convention == "edeflare"
     assert default.evaluation.methods["raw"].means != result.evaluation.methods["raw"].means
+    # the HTML report says which convention its table follows
+    for bench, name in ((result, "authors&#x27;"), (default, "edeflare")):
+        page = write_report(bench, tmp_path / name[:7], progress=False)
+        assert f"Metrics in the {name} convention" in page.read_text()
 
 
 # --- command line ------------------------------------------------------------------------

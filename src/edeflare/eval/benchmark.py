@@ -44,7 +44,7 @@ from .evaluate import (
     Summary,
     combine_summaries,
     summarize,
-    summarize_file,
+    summarize_authors,
 )
 from .metrics import segment_metrics
 from .tables import ResultsTable
@@ -350,7 +350,7 @@ def _run_sequence(
         score(k, w_start, pred)
     whole = {k: concat_events(v) if v else empty_events() for k, v in kept.items()}
     if authors:
-        summary = summarize_file(authors_metrics(whole["gt"], whole["output"]))
+        summary = summarize_authors(authors_metrics(whole["gt"], whole["output"]))
     else:
         summary = summarize(segments)
     streams = tuple(whole.values()) if keep_streams else ()

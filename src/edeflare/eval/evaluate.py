@@ -53,7 +53,7 @@ __all__ = [
     "evaluate_streams",
     "pair_files",
     "summarize",
-    "summarize_file",
+    "summarize_authors",
 ]
 
 
@@ -129,14 +129,14 @@ def convention_note(convention: str) -> str:
     return _NOTES[check_convention(convention)]
 
 
-def summarize_file(metrics: AuthorsMetrics) -> Summary:
+def summarize_authors(metrics: AuthorsMetrics) -> Summary:
     """A file's summary in the authors' convention: its eight values, NaN counted as undefined.
 
     Examples
     --------
     >>> from edeflare.eval.authors import AuthorsMetrics
     >>> nan = float("nan")
-    >>> s = summarize_file(AuthorsMetrics(nan, nan, 0.5, 0, 0, 1, 1, 1, n_chunks=3))
+    >>> s = summarize_authors(AuthorsMetrics(nan, nan, 0.5, 0, 0, 1, 1, 1, n_chunks=3))
     >>> s.undefined["chamfer"], s.means["mse"], s.n_segments
     (1, 0.5, 3)
     """
@@ -277,7 +277,7 @@ def evaluate_events(
             lo = -(2**62) if start_us is None else start_us
             hi = 2**62 if end_us is None else end_us
             events_gt, events_pred = slice_time(events_gt, lo, hi), slice_time(events_pred, lo, hi)
-        return summarize_file(authors_metrics(events_gt, events_pred))
+        return summarize_authors(authors_metrics(events_gt, events_pred))
     segments = evaluate_streams(
         events_gt,
         events_pred,
@@ -479,7 +479,7 @@ def evaluate(
                 file_metrics = evaluate_file_authors(
                     gt_path, pred_path, sensor_size=sensor_size, workers=workers
                 )
-                summary = summarize_file(file_metrics)
+                summary = summarize_authors(file_metrics)
             else:
                 segments = evaluate_files(
                     gt_path,
