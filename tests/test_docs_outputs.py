@@ -269,6 +269,7 @@ SIMULATE = "docs/tutorials/simulate-dataset.md"
 TRAIN = "docs/tutorials/train-torchrun.md"
 PAIRED = "docs/tutorials/paired-benchmark.md"
 ABLATION = "docs/ablation.md"
+EVALUATION = "docs/evaluation.md"
 
 SKIPS = {
     SIMULATE: {
@@ -390,9 +391,22 @@ def test_ablation_page(tmp_path_factory, step):
     check(Workspace(tmp_path_factory.mktemp("ablation"), [step], {}), step)
 
 
+@pytest.fixture(scope="module")
+def evaluation(tmp_path_factory) -> Workspace:
+    folder = tmp_path_factory.mktemp("evaluation")
+    return Workspace(folder, _steps(EVALUATION, python=False), {})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("step", _steps(EVALUATION, python=False), ids=lambda s: s.id)
+def test_evaluation_page(evaluation, step):
+    """The two conventions side by side on a simulated split."""
+    check(evaluation, step)
+
+
 def test_every_page_with_commands_is_checked():
     """A page that shows an `edeflare` command's output is in this module."""
-    checked = {PROPHESEE, DEFLARING, SIMULATE, TRAIN, PAIRED, ABLATION}
+    checked = {PROPHESEE, DEFLARING, SIMULATE, TRAIN, PAIRED, ABLATION, EVALUATION}
     for path in [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]:
         rel = str(path.relative_to(ROOT))
         shown = [s for s in page_steps(rel, python=False) if s.expected]

@@ -3,6 +3,8 @@
 - :mod:`~edeflare.eval.metrics`: per-window metrics (Chamfer, Gaussian, MSE, PSNR, ...).
 - :mod:`~edeflare.eval.evaluate`: score streams, files or folders; aggregate over segments
   and sequences.
+- :mod:`~edeflare.eval.authors`: the same eight metrics as the authors' evaluation code
+  computes them (``convention="authors"``).
 - :mod:`~edeflare.eval.tables`: :class:`~edeflare.eval.tables.ResultsTable`, the paper's
   table (best / second, improvement) and its one writer (``save``).
 - :mod:`~edeflare.eval.benchmark`: every method on every sequence of a split, with speed.

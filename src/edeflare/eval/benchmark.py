@@ -10,7 +10,10 @@ and each segment is scored against the ground truth's with
 memory is bounded by a window, not by the sequence. The results equal
 de-flaring the whole input in memory (a method's streamer and its one-pass
 call agree). Means are over segments, then over sequences (as
-:func:`edeflare.eval.evaluate.evaluate`). Speed is measured per method as
+:func:`edeflare.eval.evaluate.evaluate`). With ``convention="authors"`` each
+sequence's ground truth and output over the span are kept whole and scored
+as one file the way the authors' evaluation code scores it
+(:mod:`edeflare.eval.authors`); the means are then over sequences. Speed is measured per method as
 20 ms windows per second and real-time factor (processing time over stream
 duration; below 1 is faster than real time), excluding reading and scoring.
 """
@@ -34,9 +37,16 @@ from ..io import open_events
 from ..io.sequence import list_sequences, read_frames, sequence_span
 from ..methods import Method, StreamRun, create_method
 from ..recon.clips import BURN_IN, centre_image
+from .authors import authors_metrics, check_convention
 from .downstream import CleanFrame, DownstreamScores
-from .evaluate import Evaluation, Summary, combine_summaries, summarize
-from .metrics import SegmentMetrics, segment_metrics
+from .evaluate import (
+    Evaluation,
+    Summary,
+    combine_summaries,
+    summarize,
+    summarize_authors,
+)
+from .metrics import segment_metrics
 from .tables import ResultsTable
 
 __all__ = ["GROUND_TRUTH", "BenchmarkResult", "MethodSpeed", "benchmark"]
@@ -139,6 +149,7 @@ def benchmark(
     progress: bool = True,
     on_output: Callable[..., None] | None = None,
     downstream: bool | str | os.PathLike[str] = False,
+    convention: str = "edeflare",
 ) -> BenchmarkResult:
     """Run and score every method on every sequence of a split.
 
@@ -166,6 +177,17 @@ def benchmark(
         files' clean frames (:mod:`edeflare.eval.downstream`): ``True`` with
         the bundled reconstructor, or a reconstructor weights file. Files
         without frames are left out of these scores.
+    convention : {"edeflare", "authors"}
+        ``edeflare``: aligned 20 ms segments scored as each completes;
+        ``authors``: each sequence scored whole as the authors' code scores a
+        file (:mod:`edeflare.eval.authors`; ``window_us`` and ``bins`` keep
+        their defaults; a sequence's ground truth and output are held in
+        memory).
+
+    Raises
+    ------
+    ParameterError
+        An unknown convention, or the authors' with another window or bins.
 
     Examples
     --------
@@ -180,7 +202,11 @@ def benchmark(
     >>> result = benchmark(split, {"raw": "raw", "pfd-a": "pfd-a"}, progress=False)
     >>> result.evaluation.methods["raw"].n_segments
     2
+    >>> authors = benchmark(split, {"raw": "raw"}, progress=False, convention="authors")
+    >>> authors.evaluation.convention, authors.evaluation.methods["raw"].n_segments
+    ('authors', 2)
     """
+    check_convention(convention, window_us=window_us, bins=bins)
     if isinstance(split, (str, os.PathLike)):
         paths = list_sequences(split)
     else:
@@ -227,7 +253,7 @@ def benchmark(
                 sample["clean"] = [f.image for f in frames[1]]
         for row, method in built.items():
             bar.set_description(f"{row}: {path.stem}")
-            run_seconds, segments, streams = _run_sequence(
+            run_seconds, summary, streams = _run_sequence(
                 method,
                 path,
                 size,
@@ -239,6 +265,7 @@ def benchmark(
                 keep_streams=on_output is not None,
                 recon=(recon, frames, scores[row]) if frames is not None else None,
                 keep_images=sample.setdefault(row, []) if in_sample else None,
+                convention=convention,
             )
             seconds[row] += run_seconds
             if on_output is not None:
@@ -254,11 +281,11 @@ def benchmark(
                     end_us=end,
                     window_us=window_us,
                 )
-            per_file[row][path.stem] = summarize(segments)
+            per_file[row][path.stem] = summary
             bar.update(1)
     bar.close()
     evaluation = Evaluation(
-        per_file, {row: combine_summaries(f.values()) for row, f in per_file.items()}
+        per_file, {row: combine_summaries(f.values()) for row, f in per_file.items()}, convention
     )
     speed = {row: MethodSpeed(seconds[row], windows, stream_us) for row in built}
     downstream_sample = {k: np.stack(v) for k, v in sample.items() if v}
@@ -280,12 +307,14 @@ def _run_sequence(
     keep_streams: bool,
     recon: tuple[Any, tuple[np.ndarray, list[CleanFrame]], DownstreamScores] | None = None,
     keep_images: list[np.ndarray] | None = None,
-) -> tuple[float, list[SegmentMetrics], tuple[np.ndarray, ...]]:
+    convention: str = "edeflare",
+) -> tuple[float, Summary, tuple[np.ndarray, ...]]:
     """Stream one sequence through one method, scoring each segment once complete.
 
     Returns the method's seconds (prepass, ``process`` and ``flush`` calls),
-    the segments' metrics, and the whole input, ground truth and output when
-    ``keep_streams`` (else an empty tuple). With ``recon`` (the
+    the sequence's summary, and the whole input, ground truth and output when
+    ``keep_streams`` (else an empty tuple). In the authors' convention the
+    ground truth and output are kept and scored whole at the end. With ``recon`` (the
     reconstructor, the file's frames, the row's scores), each output window
     is also reconstructed and scored (untimed); its images go to
     ``keep_images`` when given.
@@ -309,20 +338,23 @@ def _run_sequence(
         run.outputs(inputs(), window_us), window_us, start_us=start, end_us=end
     )
     segments = []
+    authors = convention == "authors"
     score = _window_scorer(recon, size, window_us, keep_images)
     pairs = zip(src_gt.windows(window_us, start_us=start, end_us=end), outputs, strict=True)
     for k, ((w_start, gt), (_, pred)) in enumerate(pairs):
-        if keep_streams:
+        if keep_streams or authors:
             kept["gt"].append(gt)
             kept["output"].append(pred)
-        segments.append(segment_metrics(gt, pred, size, w_start, window_us, bins=bins))
+        if not authors:
+            segments.append(segment_metrics(gt, pred, size, w_start, window_us, bins=bins))
         score(k, w_start, pred)
-    streams = (
-        tuple(concat_events(kept[k]) if kept[k] else empty_events() for k in kept)
-        if keep_streams
-        else ()
-    )
-    return prepass_seconds + sum(run.call_seconds), segments, streams
+    whole = {k: concat_events(v) if v else empty_events() for k, v in kept.items()}
+    if authors:
+        summary = summarize_authors(authors_metrics(whole["gt"], whole["output"]))
+    else:
+        summary = summarize(segments)
+    streams = tuple(whole.values()) if keep_streams else ()
+    return prepass_seconds + sum(run.call_seconds), summary, streams
 
 
 def _clean_frames(path: Path) -> tuple[np.ndarray, list[CleanFrame]] | None:

@@ -49,6 +49,7 @@ from ..methods import Method
 from ..viz import grid, save_animation, save_image
 from .benchmark import BenchmarkResult, benchmark
 from .downstream import RealReconstruction, reconstruct_recording
+from .evaluate import convention_note
 from .figures import (
     FIGURE_KINDS,
     GT,
@@ -367,7 +368,8 @@ def _page(
     body = [
         f"<h1>{_e(title)}</h1>",
         f'<p class="note">{n_files} sequence(s), {n_segments} segment(s); '
-        f"edeflare {_e(__version__)}. Lower is better for ↓ metrics, higher for ↑; "
+        f"edeflare {_e(__version__)}. {_e(convention_note(result.evaluation.convention))} "
+        "Lower is better for ↓ metrics, higher for ↑; "
         "among the methods (the raw input is not ranked) the best value is <strong>bold"
         "</strong> and the second best <em>italic</em>; the last row is the best method's "
         "gain over the second best.</p>",
