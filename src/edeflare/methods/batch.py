@@ -725,6 +725,11 @@ def deflare_files(
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise EventFileError(out_dir, "is a file; the outputs of several inputs go to a folder")
+    if not out_dir.exists() and out_dir.suffix.lower() in list_formats():
+        raise ParameterError(
+            f"{out_dir} names an event file, but the outputs of several inputs go to a "
+            "folder: name a folder"
+        )
     items = _plan(_find_inputs(inputs, out_dir), out_dir, suffix)
     if not items:
         raise ParameterError(
