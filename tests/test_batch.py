@@ -301,6 +301,19 @@ def test_bad_arguments_fail_before_any_output(
     assert not (Path("out").is_dir() and list(Path("out").rglob("*.h5")))
 
 
+def test_a_method_object_runs_in_workers_unless_it_cannot_be_sent(recordings, tmp_path):
+    efr = create_method("efr", frequency_hz=100)
+    report = deflare_files(recordings, tmp_path / "out", efr, workers=2, progress=False)
+    for name in NAMES:
+        expected = efr(*read_events(recordings / name))
+        assert same_events(read_events(tmp_path / "out" / out_name(name)).events, expected)
+    used = create_method("model")
+    used(*read_events(recordings / NAMES[0]))  # holds its loaded network now
+    with pytest.raises(ParameterError, match="cannot be sent to worker processes"):
+        deflare_files(recordings, tmp_path / "m", used, workers=2, progress=False)
+    assert report.complete and not (tmp_path / "m").exists()
+
+
 def test_cli_batch_options_apply_to_several_files_only(recordings, tmp_path, capsys):
     one = str(recordings / "a.h5")
     assert main(["deflare", one, str(tmp_path / "o.h5"), "-m", "raw", "--workers", "2"]) == 1
@@ -391,3 +404,37 @@ def test_a_batch_killed_with_sigkill_resumes_to_the_straight_runs_outputs(tmp_pa
         assert (out / name).read_bytes() == (tmp_path / "straight" / name).read_bytes()
     assert entries(out) == entries(tmp_path / "straight")
     assert not partials(out)
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_ctrl_c_stops_a_batch_with_workers_and_a_rerun_completes(tmp_path, rng):
+    """Ctrl-C at a terminal (SIGINT to the process group) while files are being written."""
+    names = [f"r{k:02d}.h5" for k in range(12)]
+    for name in names:
+        write_events(tmp_path / "rec" / name, scene(rng, span_us=400_000), SIZE)
+    straight = tmp_path / "straight"
+    deflare_files(tmp_path / "rec", straight, "efr", progress=False)
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "edeflare", "deflare", str(tmp_path / "rec"), str(out)]
+    env = dict(os.environ, PYTHONPATH=str(SRC))
+    proc = subprocess.Popen(
+        [*argv, "-m", "efr", "--workers", "2"],
+        env=env,
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    deadline = time.monotonic() + 120
+    while not list(out.glob("r*.h5")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err.decode()
+    assert "edeflare: interrupted; rerun to resume" in err.decode()
+    assert not partials(out)  # the stopped workers' temporaries are gone
+    assert 0 < len(list(out.glob("r*.h5"))) < len(names)
+    rerun = subprocess.run([*argv, "-m", "efr"], env=env, capture_output=True)
+    assert rerun.returncode == 0, rerun.stderr.decode()
+    for name in names:
+        assert (out / name).read_bytes() == (straight / name).read_bytes()
+    assert entries(out) == entries(straight) and not partials(out)

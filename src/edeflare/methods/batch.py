@@ -634,6 +634,19 @@ def _check_run_options(
         raise ParameterError(f"workers must be an int >= 1, got {workers!r}")
 
 
+def _check_picklable(method: Method) -> None:
+    """A method object goes to the workers by pickle (a used model holds a live network)."""
+    import pickle
+
+    try:
+        pickle.dumps(method)
+    except Exception as exc:
+        raise ParameterError(
+            f"the method object {method!r} cannot be sent to worker processes ({exc}); "
+            "pass its name and params instead, or workers=1"
+        ) from None
+
+
 def deflare_files(
     inputs: PathLike | Sequence[PathLike],
     out_dir: PathLike,
@@ -719,6 +732,8 @@ def deflare_files(
         if params:
             raise ParameterError("pass parameters either to create_method or here, not both")
         m, spec = method, method
+        if workers > 1:
+            _check_picklable(method)
     else:
         m = create_method(method, **dict(params or {}))  # a bad parameter fails here, once
         spec = (method, dict(params or {}))
@@ -819,6 +834,10 @@ def deflare_files(
                     finished(_run_one(m, task))
             else:
                 _run_pool(spec, tasks, workers, finished)
+    except BaseException:  # stopped (Ctrl-C): the stopped workers' temporaries go too
+        for task in tasks:
+            remove_stale_temporaries(task.item.output)
+        raise
     finally:
         bar.close()
         _write_json(own_path, own_manifest())  # also when interrupted: keep what is done
