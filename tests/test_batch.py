@@ -91,6 +91,24 @@ def test_batch_outputs_equal_one_file_runs_event_for_event(recordings, tmp_path,
     assert not partials(tmp_path / "out")
 
 
+def test_one_progress_bar_counts_the_files_on_a_terminal(recordings, tmp_path, monkeypatch):
+    import io
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    tty = Terminal()
+    monkeypatch.setattr(sys, "stderr", tty)
+    deflare_files(recordings, tmp_path / "out", "efr", workers=1)
+    drawn = tty.getvalue()
+    assert "efr: 100%" in drawn and "3/3" in drawn
+    assert " ev" not in drawn and "first pass" not in drawn  # no bar per file
+    tty.truncate(0)
+    deflare_files(recordings, tmp_path / "again", "efr", progress=False)
+    assert tty.getvalue() == ""
+
+
 # ----------------------------------------------------------------------------- resume
 
 
