@@ -429,6 +429,22 @@ def _manifest(entries: Mapping[str, dict[str, Any]], complete: bool, shard: str 
     return out
 
 
+def _remove_temporaries(outputs: list[Path]) -> None:
+    """Delete the temporaries that dead writers left beside ``outputs`` (one listing per folder)."""
+    by_folder: dict[Path, list[Path]] = {}
+    for output in outputs:
+        by_folder.setdefault(output.parent, []).append(output)
+    for folder, targets in by_folder.items():
+        try:
+            temporaries = [e.name for e in os.scandir(folder) if e.name.startswith(".")]
+        except OSError:  # not made yet
+            continue
+        temporaries = [name for name in temporaries if ".partial" in name]
+        for target in targets if temporaries else []:
+            if any(name.startswith(f".{target.name}.") for name in temporaries):
+                remove_stale_temporaries(target)
+
+
 def _write_json(path: Path, payload: dict[str, Any]) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(payload, indent=1, sort_keys=True) + "\n")
@@ -778,10 +794,10 @@ def deflare_files(
             best = _best(entries, out_dir.joinpath(*PurePosixPath(name).parts))
             if best is not None:
                 view[name] = best
+    _remove_temporaries([item.output for item in mine])  # of killed runs
     results: dict[str, FileResult] = {}
     tasks: list[_Task] = []
     for item in mine:
-        remove_stale_temporaries(item.output)  # of killed runs
         same = tuple(e for e in known.get(item.name, []) if e.get("method") == identity)
         fresh = next((e for e in same if _fresh_by_stat(e, item)), None)
         if fresh is not None:
@@ -808,10 +824,10 @@ def deflare_files(
         unit="file",
         dynamic_ncols=True,
     )
-    last_write = time.perf_counter()
+    next_write = time.perf_counter() + _WRITE_EVERY_S
 
     def finished(outcome: _Outcome) -> None:
-        nonlocal last_write
+        nonlocal next_write
         r = outcome.result
         results[r.name] = r
         if outcome.entry is not None:
@@ -822,9 +838,10 @@ def deflare_files(
         if on_file is not None:
             on_file(r)
         now = time.perf_counter()
-        if now - last_write > _WRITE_EVERY_S:  # current without rewriting it per file
+        if now > next_write:  # current without rewriting it per file
             _write_json(own_path, own_manifest())
-            last_write = now
+            spent = time.perf_counter() - now  # a large manifest: at most 5% of the time
+            next_write = now + max(_WRITE_EVERY_S, 20 * spent)
 
     try:
         with interruptible():  # Ctrl-C stops the run even if a finaliser swallows it
@@ -835,8 +852,7 @@ def deflare_files(
             else:
                 _run_pool(spec, tasks, workers, finished)
     except BaseException:  # stopped (Ctrl-C): the stopped workers' temporaries go too
-        for task in tasks:
-            remove_stale_temporaries(task.item.output)
+        _remove_temporaries([task.item.output for task in tasks])
         raise
     finally:
         bar.close()
