@@ -112,6 +112,8 @@ _VOLATILE = [
     (re.compile(r"(% \|.*)\| [\d.]+ \| [\d.]+ \|$"), r"\1| # | # |"),  # score: time, RTF
     (re.compile(r"^(\| [\w.-]+) \| [\d.]+ \| [\d.]+ \|$"), r"\1 | # | # |"),  # windows/s, RTF
     (re.compile(r"max \|onnx - torch\| = [\d.e+-]+"), "max |onnx - torch| = #"),
+    # deflare FOLDER's table: seconds
+    (re.compile(r"^(\| \S+ \| [\d,]+ \| [\d,]+) \| [\d.]+ \| done \|$"), r"\1 | # | done |"),
 ]
 
 

@@ -6,7 +6,8 @@ does): ``import edeflare`` imports nothing heavy and changes no setting; the
 first use of a name imports its module.
 
 - read and write: :func:`read_events`, :func:`write_events`, :func:`open_events`, ...
-- de-flare: :func:`deflare`, :func:`deflare_file`, :func:`create_method`, :func:`list_methods`;
+- de-flare: :func:`deflare`, :func:`deflare_file`, :func:`deflare_files` (a folder),
+  :func:`create_method`, :func:`list_methods`;
 - evaluate: :func:`evaluate_events` (the paper's metrics over aligned segments);
 - simulate: :func:`simulate_pair` (one input / ground-truth pair of a flare script);
 - models: :func:`create_model`, :func:`list_models` (E-DeflareNet presets; needs torch);
@@ -35,6 +36,7 @@ _LAZY: dict[str, str] = {
     "create_method": "methods",
     "deflare": "methods",
     "deflare_file": "methods",
+    "deflare_files": "methods",
     "list_methods": "methods",
     "EdeflareError": "errors",
     "EventFileError": "errors",
@@ -82,6 +84,7 @@ __all__ = [
     "decode",
     "deflare",
     "deflare_file",
+    "deflare_files",
     "encode",
     "encode_polarity",
     "evaluate_events",
@@ -136,7 +139,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
         sort_events,
     )
     from .io import iter_windows, open_events, read_events, write_event_chunks, write_events
-    from .methods import create_method, deflare, deflare_file, list_methods
+    from .methods import create_method, deflare, deflare_file, deflare_files, list_methods
     from .models import create_model, list_models
     from .recon.infer import reconstruct_events, reconstruct_file
     from .sim.pair import simulate_pair

@@ -58,7 +58,6 @@ from __future__ import annotations
 
 import json
 import os
-import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -69,7 +68,10 @@ from typing import Any
 
 import numpy as np
 
-from .._interrupt import check_interrupt, ignore_interrupts, interruptible, sigint_blocked
+from .._interrupt import check_interrupt, interruptible, sigint_blocked
+from .._parallel import init_worker as _init_worker
+from .._parallel import parse_shard as _parse_shard
+from .._parallel import stop_workers as _stop_workers
 from .._version import __version__
 from ..errors import EventFileError, ParameterError
 from ..events import SensorSize
@@ -277,22 +279,6 @@ def _write_json(path: Path, payload: dict[str, Any]) -> None:
 # ----------------------------------------------------------------------------- workers
 
 
-def _watch_parent(parent: int) -> None:
-    """Exit when the parent process dies (a killed run must not leave busy orphans)."""
-    while True:
-        time.sleep(0.5)
-        if os.getppid() != parent:
-            os._exit(1)
-
-
-def _init_worker(parent: int, threads: int) -> None:
-    ignore_interrupts()  # Ctrl-C at a terminal reaches every worker: the parent decides
-    import numba
-
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
-
-
 def _work(recipe: Recipe, index: int, out: str) -> tuple[dict[str, Any], dict[str, float]]:
     data = generate_sequence(recipe, index)
     t0 = time.perf_counter()
@@ -324,19 +310,6 @@ class GenerationReport:
     skipped: int
     stage_seconds: dict[str, float]
     wall_seconds: float
-
-
-def _parse_shard(shard: tuple[int, int] | str) -> tuple[int, int]:
-    if isinstance(shard, str):
-        try:
-            i, n = (int(v) for v in shard.split("/"))
-        except ValueError:
-            raise ParameterError(f"shard must look like 0/4 (i/n), got {shard!r}") from None
-    else:
-        i, n = shard
-    if not (n >= 1 and 0 <= i < n):
-        raise ParameterError(f"shard i/n needs n >= 1 and 0 <= i < n, got {i}/{n}")
-    return int(i), int(n)
 
 
 def generate_dataset(
@@ -501,15 +474,6 @@ def _run_pool(
         except BaseException:  # Ctrl-C: the sequences in flight stop too
             _stop_workers(pool)  # (their futures fail with the pool; none is cancelled first,
             raise  # which the pool's own clean-up would trip over)
-
-
-def _stop_workers(pool: ProcessPoolExecutor) -> None:
-    """Terminate the pool's workers now (their files are temporary until written whole)."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    for process in processes:
-        process.terminate()
-    for process in processes:
-        process.join(5)
 
 
 def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:

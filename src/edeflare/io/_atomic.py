@@ -10,7 +10,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["AtomicFile", "atomic_path"]
+__all__ = ["AtomicFile", "atomic_path", "remove_stale_temporaries"]
 
 
 def _umask() -> int:
@@ -28,6 +28,26 @@ def _running(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+def remove_stale_temporaries(path: str | os.PathLike[str]) -> None:
+    """Delete the temporaries of target ``path`` whose writing process no longer runs.
+
+    Those are :class:`AtomicFile` temporaries left by killed writers, with the
+    files a writer keeps beside its temporary (``<temporary>.<part>``). A
+    temporary of a running process (another worker writing the same target)
+    is left alone.
+    """
+    path = Path(path)
+    pattern = re.compile(
+        rf"\.{re.escape(path.name)}\.(\d+)-.*\.partial{re.escape(path.suffix)}(\..+)?"
+    )
+    name, suffix = glob.escape(path.name), glob.escape(path.suffix)
+    for stale in path.parent.glob(f".{name}.*.partial{suffix}*"):  # spools too
+        match = pattern.fullmatch(stale.name)
+        if match and not _running(int(match.group(1))):
+            with contextlib.suppress(FileNotFoundError):
+                stale.unlink()
 
 
 class AtomicFile:
@@ -61,15 +81,7 @@ class AtomicFile:
 
     def _remove_orphans(self) -> None:
         """Delete temporaries of this target whose writing process no longer runs."""
-        pattern = re.compile(
-            rf"\.{re.escape(self.path.name)}\.(\d+)-.*\.partial{re.escape(self.path.suffix)}(\..+)?"
-        )
-        name, suffix = glob.escape(self.path.name), glob.escape(self.path.suffix)
-        for stale in self.path.parent.glob(f".{name}.*.partial{suffix}*"):  # spools too
-            match = pattern.fullmatch(stale.name)
-            if match and not _running(int(match.group(1))):
-                with contextlib.suppress(FileNotFoundError):
-                    stale.unlink()
+        remove_stale_temporaries(self.path)
 
     def discard(self) -> None:
         """Delete the temporary file (idempotent)."""

@@ -23,7 +23,9 @@ Every method, learned or classical, is a callable
 
 The package's modules each hold one job: :mod:`~edeflare.methods.base` the
 interface and the registry, :mod:`~edeflare.methods.streaming` files streamed
-window by window (:func:`deflare_file`), and one module per family of methods
+window by window (:func:`deflare_file`), :mod:`~edeflare.methods.batch` many
+files into a folder, parallel, sharded and resumable (:func:`deflare_files`), and
+one module per family of methods
 (:mod:`~edeflare.methods.classical`, :mod:`~edeflare.methods.filters`,
 :mod:`~edeflare.methods.model`). New methods join with :func:`register_method`
 (a factory whose keyword parameters are the method's parameters;
@@ -43,6 +45,7 @@ from .base import (
     method_parameters,
     register_method,
 )
+from .batch import BatchReport, FileResult, deflare_files
 from .classical import VoxelParams
 from .model import ModelParams
 from .streaming import DeflareStats, StreamRun, deflare_file
@@ -50,7 +53,9 @@ from .windows import WindowStreamer
 
 __all__ = [
     "METHODS",
+    "BatchReport",
     "DeflareStats",
+    "FileResult",
     "Method",
     "ModelParams",
     "StreamRun",
@@ -60,6 +65,7 @@ __all__ = [
     "create_method",
     "deflare",
     "deflare_file",
+    "deflare_files",
     "list_methods",
     "method_parameters",
     "register_method",
