@@ -75,3 +75,40 @@ def test_the_detector_finds_a_disc_where_it_is():
     counts[(xx - 42) ** 2 + (yy - 12) ** 2 <= 16] = 50.0
     (found,) = detect_light_source(counts)
     assert abs(found.cx - 42) < 0.5 and abs(found.cy - 12) < 0.5 and 4 <= found.r <= 6
+
+
+def _blob(t0, cx, cy, side=5, repeats=10, dt=4):
+    from edeflare.events import make_events
+
+    yy, xx = np.mgrid[:side, :side]
+    n = xx.size * repeats
+    return make_events(t0 + np.arange(n) * dt, np.tile(xx.ravel() + cx, repeats),
+                       np.tile(yy.ravel() + cy, repeats), np.ones(n, int))  # fmt: skip
+
+
+def test_tracked_lights_keep_their_identity_and_move_with_the_light():
+    from edeflare.events import merge_events
+    from edeflare.lights import track_lights
+
+    # a bright blob moving right and a dimmer one standing still; in the second window the
+    # moving one is dimmer (fewer events): detection ranks them the other way round
+    a1, b1 = _blob(0, 10, 20, repeats=12, dt=3), _blob(0, 40, 30, repeats=10, dt=3)
+    a2, b2 = _blob(1000, 16, 20, repeats=10, dt=3), _blob(1000, 40, 30, repeats=12, dt=3)
+    lights = track_lights(merge_events(a1, b1, a2, b2), (64, 48), max_sources=2, window_us=1000)
+    moving, still = sorted(lights.sources, key=lambda s: -float(np.ptp(s.table[:, 1])))
+    assert moving.kind == still.kind == "track"
+    cx, _, _ = moving.at(np.array([500, 1000, 1500]))
+    assert np.round(cx).tolist() == [12, 15, 18]  # linear between the windows' middles
+    assert np.ptp(still.table[:, 1]) < 1e-9 and moving.response_us == 1000
+
+
+def test_a_lights_radius_comes_from_its_rings_even_at_the_frames_edge():
+    from edeflare.events import make_events
+    from edeflare.lights import light_radius
+
+    yy, xx = np.mgrid[:48, :64]
+    disc = np.hypot(xx - 30, yy - 2) < 10  # cut by the top edge
+    n = int(disc.sum())
+    ev = make_events(np.arange(5 * n), np.tile(xx[disc], 5), np.tile(yy[disc], 5),
+                     np.ones(5 * n, int))  # fmt: skip
+    assert light_radius(ev, (64, 48), LightSource.circle(30, 2, 3)) == 10.0

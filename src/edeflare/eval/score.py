@@ -74,7 +74,7 @@ import numpy as np
 
 from ..errors import EventFileError, ParameterError
 from ..events import SensorSize, check_events, check_sensor_size, window_start_for
-from ..lights import Lights, detect_lights, load_lights, measure_regions
+from ..lights import Lights, load_lights, measure_regions, track_lights
 
 __all__ = [
     "MethodScore",
@@ -87,6 +87,10 @@ __all__ = [
 ]
 
 REGIONS = ("light", "halo", "ghost", "flare", "background")
+DARK_SHARE = 0.01
+"""Detected lights whose background holds at most this share of a recording's events are
+lights in the dark: the background is sensor noise, reported but not scored (as the
+annotation of the Prophesee Gen3 light says of its 0.6 %)."""
 _LABELS = np.array(["background", "light", "rim", "halo", "ghost", "halo+ghost"])
 
 @dataclasses.dataclass(frozen=True)
@@ -437,9 +441,10 @@ def score_recording(
     preds : mapping of str to path-like, optional
         Name -> a de-flared version of the recording (same sensor size).
     lights : path-like or Lights, optional
-        An annotation (:func:`~edeflare.lights.load_lights`); None detects the
-        lights per window (:func:`~edeflare.lights.detect_lights`, ``max_sources``
-        of them).
+        An annotation (:func:`~edeflare.lights.load_lights`); None detects and
+        follows the lights (:func:`~edeflare.lights.track_lights`, ``max_sources``
+        of them; the background left out of the combined score where it holds at
+        most :data:`DARK_SHARE` of the events).
     window_us : int
         Window of the count comparison and of detection.
     overrides : mapping, optional
@@ -500,9 +505,12 @@ def score_recording(
         the_lights, source = load_lights(lights, size), os.fspath(lights)
     else:
         try:
-            the_lights = detect_lights(events, size, window_us, max_sources=max_sources)
+            the_lights = track_lights(events, size, max_sources=max_sources)
         except ParameterError as exc:
             raise EventFileError(recording, str(exc)) from None
+        regions = classify_events(events, the_lights, size)
+        if regions.background.mean() <= DARK_SHARE:  # a light in the dark: noise around it
+            the_lights = dataclasses.replace(the_lights, score_background=False)
         if measure:
             # where the flare reaches, from the recording (the factors where it shows none)
             the_lights = measure_regions(events, size, the_lights)

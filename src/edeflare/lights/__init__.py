@@ -6,7 +6,9 @@
   :class:`Circle` / :class:`Polygon` are a fixed source's outline
   (:attr:`LightSource.shape`);
 - :func:`detect_light_source` (the brightest compact regions of the event
-  density) and :func:`detect_lights` (the same, window by window);
+  density), :func:`detect_lights` (the same, window by window) and
+  :func:`track_lights` (followed from window to window, a radius from the rings
+  around each: what the scorer uses without an annotation);
   :func:`measure_regions` / :func:`flare_reach`: how far each source's halo and
   ghost reach, from the radial event rate around it;
 - :func:`window_lights`: the cells of a window that hold a light, the cheap test
@@ -26,7 +28,7 @@ True
 from __future__ import annotations
 
 from .cells import window_lights
-from .detect import count_map_of, detect_light_source, detect_lights
+from .detect import count_map_of, detect_light_source, detect_lights, light_radius, track_lights
 from .reach import FlareReach, flare_reach, measure_regions
 from .shapes import Circle, Polygon, Shape, light_mask, parse_light
 from .source import Lights, LightSource, bundled_lights, load_lights, parse_lights, save_lights
@@ -44,11 +46,13 @@ __all__ = [
     "detect_lights",
     "flare_reach",
     "light_mask",
+    "light_radius",
     "load_lights",
     "measure_regions",
     "parse_light",
     "parse_lights",
     "save_lights",
+    "track_lights",
     "window_lights",
 ]
 
