@@ -194,3 +194,68 @@ def kill_at_random_moments(
             f"rerun after a kill at {moment:.2f} s differs"
         )
     return killed
+
+
+def children(pid: int) -> list[int]:
+    """Live processes whose parent is ``pid`` (Linux /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            found.append(int(stat.parent.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    """Whether ``pid`` runs (not gone, not a zombie; Linux /proc)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def sigkill_main_process(
+    argv: list[str], log: Path, ready: Callable[[], bool], *, poll_s: float = 0.01
+) -> tuple[int, list[int]]:
+    """Run ``argv`` with this checkout's ``src`` first on the path, wait (at most 120 s)
+    until ``ready()``, and SIGKILL its main process only, as a scheduler would; return
+    its exit status and the workers it had then, after waiting up to 10 s for them to
+    notice and stop."""
+    import signal
+    import subprocess
+    import time
+
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    with open(log, "wb") as err:
+        proc = subprocess.Popen(argv, env=env, stderr=err)
+        try:
+            deadline = time.monotonic() + 120
+            while not ready() and time.monotonic() < deadline:
+                if proc.poll() is not None:
+                    break
+                time.sleep(poll_s)
+            workers = children(proc.pid)
+            proc.send_signal(signal.SIGKILL)
+        finally:
+            proc.wait()
+    deadline = time.monotonic() + 10
+    while any(alive(w) for w in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return proc.returncode, workers
+
+
+def strip_fences(text: str) -> str:
+    """The text without fenced code blocks (``` or ~~~ fences, any indentation)."""
+    kept, fence = [], None
+    for line in text.splitlines():
+        marker = line.lstrip()[:3]
+        if fence is None and marker in ("```", "~~~"):
+            fence = marker
+        elif fence is not None and marker == fence:
+            fence = None
+        elif fence is None:
+            kept.append(line)
+    return "\n".join(kept)

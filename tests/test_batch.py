@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import random_events, same_events
+from conftest import alive, random_events, same_events, sigkill_main_process
 from edeflare.cli import main
 from edeflare.errors import EventFileError, ParameterError
 from edeflare.events import EVENT_DTYPE
@@ -358,25 +358,6 @@ deflare_files(sys.argv[1], sys.argv[2], "efr", workers=2, progress=False)
 """
 
 
-def _children(pid: int) -> list[int]:
-    found = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid:
-            found.append(int(stat.parent.name))
-    return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_a_batch_killed_with_sigkill_resumes_to_the_straight_runs_outputs(tmp_path, rng):
     names = [f"r{k:02d}.h5" for k in range(10)]
@@ -384,28 +365,13 @@ def test_a_batch_killed_with_sigkill_resumes_to_the_straight_runs_outputs(tmp_pa
         write_events(tmp_path / "rec" / name, scene(rng, span_us=60_000), SIZE)
     straight = deflare_files(tmp_path / "rec", tmp_path / "straight", "efr", progress=False)
     out = tmp_path / "killed"
-    env = dict(os.environ, PYTHONPATH=str(SRC))
-    with open(tmp_path / "stderr.txt", "wb") as err:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", _KILLED_RUN, str(tmp_path / "rec"), str(out)],
-            env=env,
-            stderr=err,
-        )
-        try:
-            deadline = time.monotonic() + 120
-            while len(list(out.glob("r*.h5"))) < 2 and time.monotonic() < deadline:
-                if proc.poll() is not None:
-                    break
-                time.sleep(0.01)
-            workers = _children(proc.pid)
-            proc.send_signal(signal.SIGKILL)  # the main process only, as a scheduler would
-        finally:
-            proc.wait()
-    assert proc.returncode == -signal.SIGKILL, (tmp_path / "stderr.txt").read_text()
-    deadline = time.monotonic() + 10  # its orphaned workers notice and stop
-    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert workers and not any(_alive(w) for w in workers)
+    status, workers = sigkill_main_process(
+        [sys.executable, "-c", _KILLED_RUN, str(tmp_path / "rec"), str(out)],
+        tmp_path / "stderr.txt",
+        lambda: len(list(out.glob("r*.h5"))) >= 2,
+    )
+    assert status == -signal.SIGKILL, (tmp_path / "stderr.txt").read_text()
+    assert workers and not any(alive(w) for w in workers)
     done = sorted(p.name for p in out.glob("r*.h5"))
     assert 0 < len(done) < len(names)
     for name in done:  # complete files only, equal to the straight run's

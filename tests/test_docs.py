@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from conftest import strip_fences
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 
@@ -32,23 +34,9 @@ def _markdown_files() -> list[Path]:
     return [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted(DOCS.rglob("*.md")), *cards]
 
 
-def _strip_fences(text: str) -> str:
-    """The text without fenced code blocks (``` or ~~~ fences, any indentation)."""
-    kept, fence = [], None
-    for line in text.splitlines():
-        marker = line.lstrip()[:3]
-        if fence is None and marker in ("```", "~~~"):
-            fence = marker
-        elif fence is not None and marker == fence:
-            fence = None
-        elif fence is None:
-            kept.append(line)
-    return "\n".join(kept)
-
-
 def _links(text: str) -> list[str]:
     """Link targets outside code blocks and code spans."""
-    text = _CODE_SPAN.sub("", _strip_fences(text))
+    text = _CODE_SPAN.sub("", strip_fences(text))
     inline = [angle or bare for angle, bare in _INLINE.findall(text)]
     return inline + _DEFINITION.findall(text)
 
@@ -92,7 +80,7 @@ def _anchors(text: str) -> set[str]:
     """GitHub's anchors of the headings of a Markdown text (``-1``, ``-2``... for repeats)."""
     seen: dict[str, int] = {}
     anchors = set()
-    for line in _strip_fences(text).splitlines():
+    for line in strip_fences(text).splitlines():
         heading = re.match(r"^\s{0,3}#{1,6}\s+(.*?)\s*#*\s*$", line)
         if not heading:
             continue

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import real_data_dir
+from conftest import real_data_dir, strip_fences
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -418,23 +418,9 @@ def test_every_page_with_commands_is_checked():
 # --- numbers in tables and prose -----------------------------------------------------------
 
 
-def _unfenced(text: str) -> str:
-    """The text without its fenced blocks (a ``# comment`` in a code block is no heading)."""
-    kept, fence = [], None
-    for line in text.splitlines():
-        marker = line.lstrip()[:3]
-        if fence is None and marker in ("```", "~~~"):
-            fence = marker
-        elif fence is not None and marker == fence:
-            fence = None
-        elif fence is None:
-            kept.append(line)
-    return "\n".join(kept)
-
-
 def _section(text: str, heading: str) -> str:
     """The text under a heading, up to the next heading of the same or a higher level."""
-    text = _unfenced(text)
+    text = strip_fences(text)
     m = re.search(rf"^(#+) {re.escape(heading)}\s*$", text, re.M)
     assert m, f"no heading {heading!r}"
     level = len(m.group(1))

@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import random_events, same_events
+from conftest import alive, children, random_events, same_events, sigkill_main_process
 from edeflare.cli import main
 from edeflare.data.generate import (
     GROUPS,
@@ -277,56 +277,22 @@ generate_dataset(recipe, sys.argv[2], workers=2, progress=False)
 """
 
 
-def _children(pid: int) -> list[int]:
-    """Live processes whose parent is ``pid`` (Linux /proc)."""
-    found = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid and fields[0] != "Z":
-            found.append(int(stat.parent.name))
-    return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_resume_after_sigkill_gives_the_uninterrupted_manifest(tmp_path):
     recipe = dataclasses.replace(TINY, sequences=24, test_sequences=4, duration_us=20_000)
     full = tmp_path / "full"
     generate_dataset(recipe, full, progress=False)
     out = tmp_path / "killed"
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2] / "src"))
     log = tmp_path / "stderr.txt"
-    with open(log, "wb") as err:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", _KILLED_RUN, json.dumps(recipe.to_dict()), str(out)],
-            env=env,
-            stderr=err,
-        )
-        try:
-            deadline = time.monotonic() + 120
-            while len(list(out.rglob("seq_*.h5"))) < 3 and time.monotonic() < deadline:
-                if proc.poll() is not None:
-                    break
-                time.sleep(0.02)
-            workers = _children(proc.pid)
-            proc.send_signal(signal.SIGKILL)  # the main process only, as a scheduler would
-        finally:
-            proc.wait()
-    assert proc.returncode == -signal.SIGKILL, log.read_text()
+    status, workers = sigkill_main_process(
+        [sys.executable, "-c", _KILLED_RUN, json.dumps(recipe.to_dict()), str(out)],
+        log,
+        lambda: len(list(out.rglob("seq_*.h5"))) >= 3,
+        poll_s=0.02,
+    )
+    assert status == -signal.SIGKILL, log.read_text()
     # Its orphaned workers notice and stop: at most the sequences in flight are lost.
-    deadline = time.monotonic() + 10
-    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert workers and not any(_alive(w) for w in workers)
+    assert workers and not any(alive(w) for w in workers)
     done = len(list(out.rglob("seq_*.h5")))
     assert 0 < done < recipe.sequences
     report = generate_dataset(recipe, out, workers=2, progress=False)
@@ -366,16 +332,16 @@ def test_ctrl_c_always_stops_simulate_and_a_rerun_completes(tmp_path):
         while len(list(out.rglob("seq_*.h5"))) <= made and time.monotonic() < deadline:
             assert proc.poll() is None, proc.stderr.read()  # still running: not done yet
             time.sleep(0.02)
-        pool = _children(proc.pid) if workers == "2" else []
+        pool = children(proc.pid) if workers == "2" else []
         os.killpg(proc.pid, signal.SIGINT)  # while it writes the next files
         sent = time.monotonic()
         _, err = proc.communicate(timeout=30)
         assert time.monotonic() - sent < 10  # prompt, not at the end of the run
         assert (proc.returncode, err) == (130, "edeflare: interrupted; rerun to resume\n"), err
         deadline = time.monotonic() + 10
-        while any(_alive(w) for w in pool) and time.monotonic() < deadline:
+        while any(alive(w) for w in pool) and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert not any(_alive(w) for w in pool)  # the workers stopped too
+        assert not any(alive(w) for w in pool)  # the workers stopped too
         now = len(list(out.rglob("seq_*.h5")))
         assert made < now < recipe.sequences  # stopped before the end
         made = now

@@ -163,17 +163,7 @@ def run(args: argparse.Namespace) -> int:
         )
     args.input = Path(args.inputs[0])
     stats = deflare_file(
-        args.input,
-        args.output,
-        args.method,
-        window_us,
-        args.sensor_size,
-        params=method_params(args),
-        rng=args.seed,
-        max_lag_us=max_lag_us,
-        evt_version=args.evt_version,
-        group=args.group,
-        progress=False if args.no_progress else None,
+        args.input, args.output, **_stream_options(args, window_us, max_lag_us)
     )
     kept = stats.events_out / stats.events_in if stats.events_in else 0.0
     print(
@@ -206,6 +196,23 @@ def _run_options(args: argparse.Namespace) -> tuple[int, int | None]:
     return window_us, max_lag_us
 
 
+def _stream_options(
+    args: argparse.Namespace, window_us: int, max_lag_us: int | None
+) -> dict[str, Any]:
+    """What one file and a batch are de-flared with: the method and the streaming options."""
+    return {
+        "method": args.method,
+        "window_us": window_us,
+        "sensor_size": args.sensor_size,
+        "params": method_params(args),
+        "rng": args.seed,
+        "max_lag_us": max_lag_us,
+        "evt_version": args.evt_version,
+        "group": args.group,
+        "progress": False if args.no_progress else None,
+    }
+
+
 def _run_batch(args: argparse.Namespace, window_us: int, max_lag_us: int | None) -> int:
     """De-flare every input file into the output folder; a summary table; 1 if any failed."""
     from ..methods.batch import FileResult, deflare_files
@@ -222,18 +229,10 @@ def _run_batch(args: argparse.Namespace, window_us: int, max_lag_us: int | None)
     report = deflare_files(
         args.inputs,
         args.output,
-        args.method,
-        window_us,
-        args.sensor_size,
-        params=method_params(args),
-        rng=args.seed,
-        max_lag_us=max_lag_us,
-        evt_version=args.evt_version,
-        group=args.group,
+        **_stream_options(args, window_us, max_lag_us),
         suffix=None if args.suffix == "keep" else args.suffix,
         workers=args.workers,
         shard=args.shard,
-        progress=False if args.no_progress else None,
         on_file=report_failure,
     )
     print(report.table())

@@ -499,6 +499,7 @@ def score_recording(
     events, size = read_events(recording)
     if events.size == 0:
         raise EventFileError(recording, "no events: nothing to score")
+    classified: tuple[Lights, Regions] | None = None
     if isinstance(lights, Lights):
         the_lights, source = lights, "given"
     elif lights is not None:
@@ -511,6 +512,7 @@ def score_recording(
         regions = classify_events(events, the_lights, size)
         if regions.background.mean() <= DARK_SHARE:  # a light in the dark: noise around it
             the_lights = dataclasses.replace(the_lights, score_background=False)
+        classified = (the_lights, regions)  # the regions do not depend on score_background
         if measure:
             # where the flare reaches, from the recording (the factors where it shows none)
             the_lights = measure_regions(events, size, the_lights)
@@ -565,7 +567,8 @@ def score_recording(
             rows,
             [score_events(events, o, the_lights, size, window_us=window_us) for o in by_phase[1:]],
         )
-    regions = classify_events(events, the_lights, size)
+    if classified is None or classified[0] is not the_lights:  # measured or overridden
+        regions = classify_events(events, the_lights, size)
     counts = {r: int(regions.mask(r).sum()) for r in (*REGIONS, "rim")}
     return ScoreReport(
         recording=os.fspath(recording),

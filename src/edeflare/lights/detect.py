@@ -24,6 +24,7 @@ from ..events import (
     count_map,
     window_start_for,
 )
+from .rings import centred, ring_pixels
 from .shapes import Circle
 from .source import Lights, LightSource
 
@@ -237,19 +238,11 @@ def light_radius(
     >>> light_radius(ev, (64, 64), LightSource.circle(32, 32, 4))
     10.0
     """
-    cx, cy, r = source.at(events["t"])
-    ok = np.isfinite(cx)
-    if not ok.any():
-        raise ParameterError("no events while the light source is present")
-    d = np.hypot(events["x"][ok] - cx[ok], events["y"][ok] - cy[ok])
-    detected = float(np.median(r[ok]))
+    at = centred(events, source)
+    detected = float(np.median(at.r))
     edges = np.arange(0.0, 6 * detected + 2 * step_px, step_px)
-    # each ring's pixels on the sensor (around the median centre): a light at the edge
-    # of the frame has rings cut by it
-    yy, xx = np.mgrid[: sensor_size[1], : sensor_size[0]]
-    near = np.hypot(xx - np.median(cx[ok]), yy - np.median(cy[ok])).ravel()
-    area = np.histogram(near, edges)[0].astype(np.float64)
-    count = np.histogram(d, edges)[0]
+    area = ring_pixels(*at.median_centre(), sensor_size, edges)  # cut by the frame's edge
+    count = np.histogram(at.distances(), edges)[0]
     rate = np.divide(count, area, out=np.zeros(area.shape), where=area > 0)
     inner = edges[1:] <= max(detected / 2, step_px)
     core = float(rate[inner].mean())

@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 
-from ..errors import ParameterError
 from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, sort_events
+from .rings import centred, ring_pixels
 from .source import Lights, LightSource
 
 __all__ = ["FlareReach", "flare_reach", "measure_regions", "synthetic_flare"]
@@ -51,14 +51,6 @@ class FlareReach:
     ghost_radius_px: float | None
     background_rate: float
     radius_px: float
-
-
-def _ring_pixels(cx: float, cy: float, sensor_size: SensorSize, edges: np.ndarray) -> np.ndarray:
-    """How many pixel centres of the sensor lie in each ring ``edges[i] <= d < edges[i+1]``."""
-    width, height = sensor_size
-    yy, xx = np.mgrid[:height, :width]
-    d = np.hypot(xx - cx, yy - cy).ravel()
-    return np.histogram(d, bins=edges)[0].astype(np.float64)
 
 
 def _meets_background(
@@ -109,21 +101,15 @@ def flare_reach(
         No events while the source is present.
     """
     width, height = check_sensor_size(sensor_size)
-    cx, cy, r = source.at(events["t"])
-    present = np.isfinite(cx)
-    if not present.any():
-        raise ParameterError("no events while the light source is present")
-    x = events["x"][present].astype(np.float64)
-    y = events["y"][present].astype(np.float64)
-    cx, cy, r = cx[present], cy[present], r[present]
-    t = events["t"][present]
+    at = centred(events, source)
+    x, y, t, cx, cy, r = at.x, at.y, at.t, at.cx, at.cy, at.r
     seconds = max(float(t[-1] - t[0]), 1.0) * 1e-6
-    mx, my, mr = float(np.median(cx)), float(np.median(cy)), float(np.median(r))
+    (mx, my), mr = at.median_centre(), float(np.median(r))
     step = max(2.0, mr / 2) if bin_px is None else float(bin_px)
     far = math.hypot(max(mx, width - 1 - mx), max(my, height - 1 - my))
     edges = np.arange(0.0, far + step, step)
-    area = _ring_pixels(mx, my, (width, height), edges)
-    counts = np.histogram(np.hypot(x - cx, y - cy), bins=edges)[0].astype(np.float64)
+    area = ring_pixels(mx, my, (width, height), edges)
+    counts = np.histogram(at.distances(), bins=edges)[0].astype(np.float64)
     # the background: the median rate of the rings in the outer half of the frame's reach
     outer = (edges[:-1] >= far / 2) & (area > 0)
     rates = counts[outer] / (area[outer] * seconds)
@@ -132,7 +118,7 @@ def flare_reach(
     ring = _meets_background(counts, area, seconds, background, max(first, 0))
     halo = None if ring is None else float(edges[min(ring, edges.size - 1)])
     gx, gy = width - 1 - mx, height - 1 - my
-    g_area = _ring_pixels(gx, gy, (width, height), edges)
+    g_area = ring_pixels(gx, gy, (width, height), edges)
     g_counts = np.histogram(np.hypot(x - (width - 1 - cx), y - (height - 1 - cy)), bins=edges)
     g_ring = _meets_background(g_counts[0].astype(np.float64), g_area, seconds, background, 0)
     ghost = None if g_ring is None else float(edges[min(g_ring, edges.size - 1)])

@@ -184,12 +184,12 @@ class RuleSet:
     """
 
     def __init__(self, values: Mapping[str, Any] | None = None) -> None:
-        fields = knob_fields()
+        self._fields = knob_fields()
         given = {k: v for k, v in dict(values or {}).items() if v is not None}
         for name in given:
-            if name not in fields:
+            if name not in self._fields:
                 raise ParameterError(
-                    f"unknown rule knob {name!r}; known: {', '.join(sorted(fields))}"
+                    f"unknown rule knob {name!r}; known: {', '.join(sorted(self._fields))}"
                 )
         self.params: dict[str, Any] = {}
         for rule in RULES.values():
@@ -198,41 +198,37 @@ class RuleSet:
                 if f.name in given:
                     kw[f.name] = f.metadata["check"](given[f.name], f.name)
             self.params[rule.name] = rule.params(**kw)
+        # the rules that act, per kind of window (the values are frozen: decided once)
+        self._acting = {
+            kind: [r for r in RULES.values() if r.windows == kind and r.active(self.params[r.name])]
+            for kind in ("lights", "light-free")
+        }
+        from .light_free import needs_support
+
+        self.active: bool = any(self._acting.values())
+        """Whether any rule does anything."""
+        self.needs_support: bool = needs_support(self.params["light-free"])
+        """Whether a rule reads the events' 5x5 support (:attr:`WindowContext.support`)."""
 
     def __getitem__(self, name: str) -> Any:
-        rule, _ = knob_fields()[name]
+        rule, _ = self._fields[name]
         return getattr(self.params[rule.name], name)
 
     @property
     def values(self) -> dict[str, Any]:
         """Every knob's value, in the rules' order."""
-        return {k: self[k] for k in knob_fields()}
+        return {k: self[k] for k in self._fields}
 
     def changed(self) -> dict[str, Any]:
         """The knobs whose values differ from their rules' defaults."""
-        return {k: v for k, v in self.values.items() if v != knob_fields()[k][1].default}
-
-    @property
-    def active(self) -> bool:
-        """Whether any rule does anything."""
-        return any(rule.active(self.params[rule.name]) for rule in RULES.values())
-
-    @property
-    def needs_support(self) -> bool:
-        """Whether a rule reads the events' 5x5 support (:attr:`WindowContext.support`)."""
-        from .light_free import needs_support
-
-        return needs_support(self.params["light-free"])
+        return {k: v for k, v in self.values.items() if v != self._fields[k][1].default}
 
     def apply(self, logits: np.ndarray, ctx: WindowContext) -> None:
         """Add every active rule's shift for the context's window to ``logits``, in place."""
         if not self.active:
             return
-        kind = "lights" if ctx.has_lights else "light-free"
-        for rule in RULES.values():
-            params = self.params[rule.name]
-            if rule.windows == kind and rule.active(params):
-                logits += rule.shift(params, ctx)
+        for rule in self._acting["lights" if ctx.has_lights else "light-free"]:
+            logits += rule.shift(self.params[rule.name], ctx)
 
     def __repr__(self) -> str:
         shown = ", ".join(f"{k}={v:g}" for k, v in self.changed().items())
