@@ -141,7 +141,8 @@ def kill_at_random_moments(
 
     ``argv`` names ``out``; a straight run into ``reference`` (same arguments, the
     output swapped) sets the clock: each kill lands at a uniform random moment of
-    its wall time, start-up included. After every kill nothing may sit under the
+    its wall time, start-up included; the run's pool workers (if any) are given
+    10 s to notice and stop. After every kill nothing may sit under the
     output's name but complete files equal to the reference's, and a rerun
     must give the reference's bytes exactly (temporary files included: none).
 
@@ -175,9 +176,13 @@ def kill_at_random_moments(
             stderr=subprocess.DEVNULL,
         )
         time.sleep(moment)
+        workers = children(child.pid) if Path("/proc/self/stat").exists() else []
         child.send_signal(signal.SIGKILL)
         child.wait()
         killed += child.returncode == -signal.SIGKILL
+        deadline = time.monotonic() + 10  # orphaned workers notice, delete their temporaries
+        while any(alive(w) for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
         if out.exists():  # whatever is there under final names is complete
             for name, data in tree_bytes(out).items():
                 if name in current:

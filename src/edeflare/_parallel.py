@@ -50,10 +50,17 @@ def parse_shard(shard: tuple[int, int] | str) -> tuple[int, int]:
 
 
 def watch_parent(parent: int) -> None:
-    """Exit when the parent process dies (a killed run must not leave busy orphans)."""
+    """Exit when the parent process dies (a killed run must not leave busy orphans).
+
+    The files this worker was writing are deleted first: a rerun started
+    meanwhile leaves them alone while their writer lives, so nobody else would.
+    """
+    from .io._atomic import discard_open_temporaries
+
     while True:
         time.sleep(0.5)
         if os.getppid() != parent:
+            discard_open_temporaries()
             os._exit(1)
 
 

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from edeflare.io._atomic import AtomicFile, atomic_path
+from edeflare.io._atomic import AtomicFile, atomic_path, discard_open_temporaries
 
 
 def _dead_pid() -> int:
@@ -47,3 +47,19 @@ def test_a_commit_removes_temporaries_of_killed_writers_only(tmp_path):
         tmp.write_bytes(b"whole")
     assert target.read_bytes() == b"whole"
     assert not dead.exists() and not spool.exists() and alive.exists() and other.exists()
+
+
+def test_a_dying_worker_deletes_the_temporaries_it_is_writing_and_nothing_else(tmp_path):
+    done = tmp_path / "done.h5"
+    with atomic_path(done) as tmp:
+        tmp.write_text("whole")
+    writing = AtomicFile(tmp_path / "r[1].h5")  # glob metacharacters in the name
+    writing.tmp.write_text("half")
+    spool = writing.tmp.with_name(writing.tmp.name + ".x")  # a part kept beside it
+    spool.write_text("part")
+    abandoned = AtomicFile(tmp_path / "gone.h5")
+    abandoned.discard()
+    discard_open_temporaries()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["done.h5"]
+    discard_open_temporaries()  # idempotent: nothing left to delete
+    assert done.read_text() == "whole"

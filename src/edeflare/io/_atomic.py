@@ -7,10 +7,16 @@ import glob
 import os
 import re
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["AtomicFile", "atomic_path", "remove_stale_temporaries"]
+__all__ = ["AtomicFile", "atomic_path", "discard_open_temporaries", "remove_stale_temporaries"]
+
+# The temporaries this process is writing now: a pool worker whose parent was
+# killed deletes them before it exits (the rerun cannot: their writer still runs).
+_open: set[Path] = set()
+_open_lock = threading.Lock()
 
 
 def _umask() -> int:
@@ -72,11 +78,15 @@ class AtomicFile:
         )
         os.close(fd)
         self.tmp = Path(name)
+        with _open_lock:
+            _open.add(self.tmp)
 
     def commit(self) -> None:
         """Move the finished temporary file onto the target (with the usual umask mode)."""
         os.chmod(self.tmp, 0o666 & ~_umask())
         os.replace(self.tmp, self.path)
+        with _open_lock:
+            _open.discard(self.tmp)
         self._remove_orphans()
 
     def _remove_orphans(self) -> None:
@@ -85,8 +95,25 @@ class AtomicFile:
 
     def discard(self) -> None:
         """Delete the temporary file (idempotent)."""
+        with _open_lock:
+            _open.discard(self.tmp)
         with contextlib.suppress(FileNotFoundError):
             self.tmp.unlink()
+
+
+def discard_open_temporaries() -> None:
+    """Delete every temporary this process is writing, with the parts kept beside them.
+
+    For a process about to exit unfinished (a pool worker whose parent died):
+    its writes stop, and nothing of them stays behind.
+    """
+    with _open_lock:
+        temporaries = list(_open)
+        _open.clear()
+    for tmp in temporaries:
+        for path in (tmp, *tmp.parent.glob(f"{glob.escape(tmp.name)}.*")):
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
 
 
 @contextlib.contextmanager
