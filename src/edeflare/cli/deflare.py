@@ -162,9 +162,7 @@ def run(args: argparse.Namespace) -> int:
             "several files as IN"
         )
     args.input = Path(args.inputs[0])
-    stats = deflare_file(
-        args.input, args.output, **_stream_options(args, window_us, max_lag_us)
-    )
+    stats = deflare_file(args.input, args.output, **_stream_options(args, window_us, max_lag_us))
     kept = stats.events_out / stats.events_in if stats.events_in else 0.0
     print(
         f"{args.method}: {stats.events_in:,} events in, {stats.events_out:,} out "

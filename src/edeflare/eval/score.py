@@ -93,6 +93,7 @@ lights in the dark: the background is sensor noise, reported but not scored (as 
 annotation of the Prophesee Gen3 light says of its 0.6 %)."""
 _LABELS = np.array(["background", "light", "rim", "halo", "ghost", "halo+ghost"])
 
+
 @dataclasses.dataclass(frozen=True)
 class Regions:
     """Per-event region membership (bool arrays of the events' length)."""

@@ -55,4 +55,3 @@ __all__ = [
     "track_lights",
     "window_lights",
 ]
-

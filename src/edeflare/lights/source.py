@@ -109,8 +109,11 @@ class LightSource:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LightSource):
             return NotImplemented
-        return self.kind == other.kind and np.array_equal(self.table, other.table, equal_nan=True) \
+        return (
+            self.kind == other.kind
+            and np.array_equal(self.table, other.table, equal_nan=True)
             and self.to_dict() == other.to_dict()
+        )
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -435,6 +438,7 @@ def bundled_lights(recording: str | os.PathLike[str] | None = None) -> Path | li
     if stem not in names:
         raise ParameterError(f"no bundled annotation for {stem!r}; bundled: {', '.join(names)}")
     return folder / f"{stem}.json"
+
 
 def _shape_from_json(item: Any) -> Shape:
     if isinstance(item, str):

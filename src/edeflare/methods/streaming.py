@@ -70,9 +70,7 @@ class _Reorder:
     filter's latency, at the cost of merging with what is held each time).
     """
 
-    def __init__(
-        self, streamer: Streamer, max_lag_us: int | None, *, batched: bool = True
-    ) -> None:
+    def __init__(self, streamer: Streamer, max_lag_us: int | None, *, batched: bool = True) -> None:
         self.streamer = streamer
         self.max_lag_us = max_lag_us
         self.batched = batched

@@ -54,5 +54,3 @@ def _progress(total: int | None, desc: str, enabled: bool, unit: str = "ev") -> 
 
 def _pixel_mask_of(events: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return mask[events["y"], events["x"]]
-
-

@@ -94,4 +94,3 @@ def clean_reference(
     check_events(events, size)
     zone = glare_mask(lights, size, glare_radius_px)
     return events[~_pixel_mask_of(events, zone)]
-

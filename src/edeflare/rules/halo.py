@@ -82,6 +82,7 @@ from a light only beyond this many of its radii too. The simulator's 29 px light
 real lamps are smaller (DAVIS346 7-8 px, Gen3 18 px at 640x480), so the share of the
 width decides for them."""
 
+
 def far_from_lights(
     events: np.ndarray,
     sensor_size: SensorSize,
