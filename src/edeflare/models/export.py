@@ -52,6 +52,7 @@ from torch import nn
 from ..errors import DependencyError, EdeflareError
 from ..events import SensorSize, check_sensor_size
 from ..io._atomic import atomic_path
+from .event_features import check_feature_names
 from .flaremask import FlareMaskNet
 from .weights import ModelCard, WeightsError, load_model
 
@@ -74,6 +75,7 @@ DEFAULT_OPSET = 17
 _CARD_KEY = "edeflare_card"
 _GRAPH_KEY = "edeflare_graph"
 _PIXEL_KEY = "edeflare_pixel_refinement"  # mask.pixel: the per-event refinement's weights
+_HEAD_KEY = "edeflare_keep_head"  # a learned keep head's weights (models.event_head)
 _SIZE_KEY = "edeflare_sensor_size"
 
 
@@ -177,6 +179,15 @@ def _export(model: nn.Module, card: ModelCard, size: SensorSize, opset: int) -> 
     params = model.pixel_params() if isinstance(model, FlareMaskNet) else None
     if params is not None:  # applied per event after the graph (mask_kernels.event_keep_mask)
         meta.append((_PIXEL_KEY, json.dumps({k: v.tolist() for k, v in params.items()})))
+    head = getattr(model, "head", None)
+    if head is not None:  # applied per event after the graph, as in ModelDeflarer
+        p = head.numpy_params()
+        as_lists = {
+            "features": list(p["features"]),
+            "weights": [w.tolist() for w in p["weights"]],
+            "biases": [b.tolist() for b in p["biases"]],
+        }
+        meta.append((_HEAD_KEY, json.dumps(as_lists)))
     for key, value in meta:
         entry = proto.metadata_props.add()
         entry.key, entry.value = key, value
@@ -274,6 +285,7 @@ class OnnxNetwork:
             raise WeightsError(f"{source}: not a loadable ONNX model ({exc})") from None
         self.card, self.graph, self.sensor_size = _metadata(self.session, source)
         self.pixel_params = _pixel_params(self.session, source)
+        self.head_params = _head_params(self.session, source)
         self.input_name = self.session.get_inputs()[0].name
         self._shape = tuple(self.session.get_inputs()[0].shape[1:])
         self.source = source
@@ -312,6 +324,22 @@ def _pixel_params(session: Any, source: str) -> dict[str, np.ndarray] | None:
         return {k: np.asarray(v, dtype=np.float64) for k, v in json.loads(text).items()}
     except (ValueError, TypeError, AttributeError) as exc:
         raise WeightsError(f"{source}: unreadable pixel refinement metadata ({exc})") from None
+
+
+def _head_params(session: Any, source: str) -> dict[str, Any] | None:
+    """The learned keep head's weights stored beside the graph (None: it has none)."""
+    text = session.get_modelmeta().custom_metadata_map.get(_HEAD_KEY)
+    if text is None:
+        return None
+    try:
+        raw = json.loads(text)
+        return {
+            "features": check_feature_names(raw["features"], f"{source}: keep head"),
+            "weights": [np.asarray(w, dtype=np.float32) for w in raw["weights"]],
+            "biases": [np.asarray(b, dtype=np.float32) for b in raw["biases"]],
+        }
+    except (ValueError, TypeError, KeyError, AttributeError) as exc:
+        raise WeightsError(f"{source}: unreadable keep head metadata ({exc})") from None
 
 
 def read_onnx_card(path: str | os.PathLike[str]) -> ModelCard:
@@ -371,7 +399,7 @@ def onnx_parity(
     (0.0, 3, 0, 'event')
     """
     from .infer import ModelDeflarer
-    from .mask_kernels import event_keep_mask
+    from .mask_kernels import event_keep_mask, keep_logit_threshold
 
     torch_run = ModelDeflarer(weights, runtime="torch", batch_windows=1)
     onnx_run = ModelDeflarer(exported, batch_windows=1)
@@ -384,7 +412,15 @@ def onnx_parity(
         y1 = onnx_run.network_output(events, sensor_size, start)
         worst = max(worst, float(np.max(np.abs(y0 - y1))))
         largest = max(largest, float(np.max(np.abs(y0))))
-        if mask:
+        if mask and torch_run.head_params is not None:  # the head's decisions, after the net
+            k0, k1 = (
+                run.window_logits([(start, events)], sensor_size)[0]
+                > keep_logit_threshold(run.keep_threshold)
+                for run in (torch_run, onnx_run)
+            )
+            differing += int(np.count_nonzero(k0 != k1))
+            n_decisions += int(events.size)
+        elif mask:
             k0, k1 = (
                 event_keep_mask(
                     y,

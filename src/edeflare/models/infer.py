@@ -46,6 +46,8 @@ from ..methods.windows import WindowStreamer
 from ..rules import RULES, RuleSet, WindowContext
 from ..voxel import decode, decode_keep, encode
 from . import create_model
+from .event_features import window_features
+from .event_head import EventHead, head_logits
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet
 from .mask_kernels import event_features, event_keep_logits, keep_logit_threshold
@@ -215,6 +217,11 @@ class ModelDeflarer:
         The per-pixel refinement's weights of a ``mask.pixel`` model
         (:meth:`~edeflare.models.flaremask.FlareMaskNet.pixel_params`; from the
         ONNX metadata for an ``.onnx`` file), applied per event after the network.
+    head_params : dict or None
+        The learned keep head of the card's ``head``
+        (:meth:`~edeflare.models.event_head.EventHead.numpy_params`; from the ONNX
+        metadata for an ``.onnx`` file): each event's keep logit from the network's
+        logit and the window's evidence (:mod:`~edeflare.models.event_features`).
 
     On CPU a mask network runs on one thread (see ``_torch_threads``): it is small,
     and the per-event work between its calls uses the other cores.
@@ -258,9 +265,18 @@ class ModelDeflarer:
                     f"{weights}: a {card.preset} export without its pixel refinement; "
                     "export it again with this version"
                 )
+            self.head_params = exported.head_params
+            if card.head and self.head_params is None:
+                raise EdeflareError(
+                    f"{weights}: an export without its keep head; export it again with this version"
+                )
         else:
             model, card = load_model(weights, self.device)
             self.pixel_params = model.pixel_params() if isinstance(model, FlareMaskNet) else None
+            head = getattr(model, "head", None)
+            self.head_params = head.numpy_params() if isinstance(head, EventHead) else None
+        if card.head and not isinstance(model, FlareMaskNet):
+            raise EdeflareError(f"{weights}: a keep head needs a mask model, not a {card.preset}")
         self.model: torch.nn.Module = model
         self.card: ModelCard = card
         fast_onnx = runtime == "auto" and isinstance(model, FlareMaskNet) and _onnx_installed()
@@ -418,8 +434,10 @@ class ModelDeflarer:
             [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
         )
         logits = self._network(feats, sensor_size, True)
-        # each event's support, for the light-free rule: free with the refinement's counts
-        need = self.rules.needs_support
+        # each event's support, for the light-free rule and the head: free with the
+        # refinement's counts
+        head = self.head_params
+        need = self.rules.needs_support or head is not None
         supports = [np.empty(ev.size, np.int64) if need else None for _, ev in batch]
         out = [
             event_keep_logits(
@@ -428,12 +446,16 @@ class ModelDeflarer:
             )
             for (start, events), lg, support in zip(batch, logits, supports, strict=True)
         ]  # fmt: skip
-        if not self.rules.active:
+        if not self.rules.active and head is None:
             return out
-        for (start, events), v, support in zip(batch, out, supports, strict=True):
+        for k, ((start, events), v, support) in enumerate(zip(batch, out, supports, strict=True)):
             # the lights' rates over the part of the window the stream covers
             ctx = WindowContext(events, sensor_size, covered_us(events, start, w), support)
-            self.rules.apply(v, ctx)
+            if head is not None:
+                features = window_features(ctx, v, head["features"], window_us=w)
+                v = out[k] = head_logits(head, features)
+            if self.rules.active:
+                self.rules.apply(v, ctx)
         return out
 
     def _run_mask(

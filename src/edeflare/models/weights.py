@@ -26,6 +26,7 @@ from ..errors import EdeflareError, ParameterError
 from ..io._atomic import atomic_path
 from ..rules import RuleSet, knob_fields
 from . import create_model, get_preset
+from .event_head import EventHead, head_spec
 
 __all__ = [
     "ModelCard",
@@ -69,10 +70,15 @@ class ModelCard:
     keep_threshold: float = 0.5  # mask models: keep an event above this keep probability
     rules: dict[str, Any] = field(default_factory=dict)
     """Mask models: the rules' knobs this model sets (:mod:`edeflare.rules`; the rest off)."""
+    head: dict[str, Any] = field(default_factory=dict)
+    """Mask models: the learned per-event keep head's layout (feature names, hidden
+    widths; :class:`~edeflare.models.event_head.EventHead`), empty for none."""
 
     def __post_init__(self) -> None:
         try:
             RuleSet(self.rules)
+            if self.head:
+                object.__setattr__(self, "head", head_spec(self.head, "head"))
         except ParameterError as exc:
             raise WeightsError(f"model card: {exc}") from None
 
@@ -81,8 +87,11 @@ class ModelCard:
         return RuleSet(self.rules)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form."""
-        return dataclasses.asdict(self)
+        """Plain-JSON form (without ``head`` when there is none: older cards stay as they were)."""
+        out = dataclasses.asdict(self)
+        if not out["head"]:
+            del out["head"]
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ModelCard:
@@ -261,6 +270,8 @@ def load_model(
         model = create_model(card.preset)
     except ValueError as exc:
         raise WeightsError(f"{path}: {exc}") from None
+    if card.head:  # the learned keep head rides with the network, as its submodule
+        model.head = EventHead(**card.head)
     tensors = read_tensors(path)
     expected = model.state_dict()
     missing = sorted(set(expected) - set(tensors))

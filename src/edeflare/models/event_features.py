@@ -1,0 +1,263 @@
+r"""Per-event evidence for a learned keep head: what the rules looked at, as numbers.
+
+The rules of :mod:`edeflare.rules` each turn one piece of evidence into a fixed
+logit shift (a verdict). Here the same evidence, and more, becomes one row of
+input features per event; :class:`~edeflare.models.event_head.EventHead` learns
+from simulated pairs how much each is worth, together with the mask network's
+own keep logit (its whole-frame context).
+
+:data:`FEATURES` names the columns, in order. A model card lists the names its
+head was trained on; a name this version does not know is refused when the card
+loads (:func:`check_feature_names`). Every feature is computed from the window's
+own events, so the head runs in the same streaming windows as the network.
+
+Examples
+--------
+>>> from edeflare.events import make_events
+>>> from edeflare.rules.context import WindowContext
+>>> ev = make_events([0, 5, 9], [1, 2, 2], [1, 1, 1], [1, 0, 1])
+>>> ctx = WindowContext(ev, (16, 8), 20_000)
+>>> table = window_features(ctx, np.zeros(3, np.float32))
+>>> table.shape == (3, len(FEATURES)), table.dtype
+(True, dtype('float32'))
+>>> table[:, list(FEATURES).index("light_free")].tolist()   # no light in this window
+[1.0, 1.0, 1.0]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..rules.context import WindowContext
+
+__all__ = ["FEATURES", "check_feature_names", "window_features"]
+
+FEATURES: dict[str, str] = {
+    "net_logit": "the mask network's keep logit (cells of the whole frame, and the pixel)",
+    "polarity": "1 for ON, 0 for OFF",
+    "light_free": "1 where the window holds no light (flare needs a bright source)",
+    "light_distance": "log(1 + distance to the nearest light's centre in its radii); "
+    f"log(1 + {64}) without a light",
+    "halo": "1 in the band of scattered light around a light (edeflare.rules.halo)",
+    "ghost": "1 where a reflective ghost of a light can be, and sparse there",
+    "spike": "1 on a light's saturated diffraction spike",
+    "far": "1 far from every light (beyond 0.3 of the width and 8 radii)",
+    "support": "log(1 + other events of the window in the event's 5x5 square)",
+    "crowded": "1 for an isolated event (support <= 2) among more isolated ones than the "
+    "window's median density allows (3 Poisson standard deviations)",
+    "field": "1 in scattered light: where crowded isolated events are a share of all",
+    "rate_pixel": "log(1 + events of the event's pixel in the window)",
+    "rate_8": "log(1 + events per pixel of its 8x8 cell)",
+    "rate_32": "log(1 + events per pixel of the 32x32 square around its cell)",
+    "rate_128": "log(1 + events per pixel of the 128x128 square around its cell)",
+    "rate_window": "log(1 + events per pixel of the whole window)",
+    "balance_pixel": "(ON - OFF) / all events of its pixel",
+    "balance_8": "(ON - OFF) / all events of its 8x8 cell",
+    "balance_32": "(ON - OFF) / all events of the 32x32 square around its cell",
+    "since_pixel": "log(1 + ms since its pixel's previous event of the window); "
+    "log(1 + window in ms) for the pixel's first",
+    "centre_distance": "distance to the sensor's centre over half its diagonal",
+}
+"""The per-event features, in column order, with what each holds. The ``rate_*`` counts
+are scaled to a full window where the stream covers only part of it."""
+
+NO_LIGHT_RADII = 64.0
+"""The distance, in radii, given to every event of a window without a light."""
+
+_CELL = 8
+
+
+def check_feature_names(names: Sequence[str], where: str = "model card") -> tuple[str, ...]:
+    """``names`` as a tuple, each a known :data:`FEATURES` name, none twice.
+
+    Examples
+    --------
+    >>> check_feature_names(["net_logit", "support"])
+    ('net_logit', 'support')
+    >>> check_feature_names(["net_logit", "moon_phase"])
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: model card: unknown feature 'moon_phase'; known: net_logit, ...
+    """
+    names = tuple(str(n) for n in names)
+    for name in names:
+        if name not in FEATURES:
+            known = ", ".join(FEATURES)
+            if len(known) > 40:
+                known = known[: known.index(",", 0) + 1] + " ..."
+            raise ParameterError(f"{where}: unknown feature {name!r}; known: {known}")
+    if len(set(names)) != len(names):
+        raise ParameterError(f"{where}: a feature is named twice in {list(names)}")
+    return names
+
+
+def _box(per_cell: np.ndarray, radius: int) -> np.ndarray:
+    """Sums over the ``(2 radius + 1)^2`` squares of cells around each cell (cut at the edges)."""
+    h, w = per_cell.shape
+    table = np.zeros((h + 1, w + 1), np.float64)
+    table[1:, 1:] = per_cell.cumsum(0).cumsum(1)
+    y0 = np.clip(np.arange(h) - radius, 0, h)
+    y1 = np.clip(np.arange(h) + radius + 1, 0, h)
+    x0 = np.clip(np.arange(w) - radius, 0, w)
+    x1 = np.clip(np.arange(w) + radius + 1, 0, w)
+    return (
+        table[y1][:, x1] - table[y0][:, x1] - table[y1][:, x0] + table[y0][:, x0]
+    )
+
+
+def _box_area(h: int, w: int, radius: int, cell: int, sensor: tuple[int, int]) -> np.ndarray:
+    """Pixels of each cell's square of cells, cut at the sensor's edges."""
+    ones = np.zeros((h, w), np.float64)
+    width, height = sensor
+    ones[:, :] = cell * cell
+    ones[-1, :] = cell * (height - (h - 1) * cell)
+    ones[:, -1] = cell * (width - (w - 1) * cell)
+    ones[-1, -1] = (height - (h - 1) * cell) * (width - (w - 1) * cell)
+    return _box(ones, radius)
+
+
+def _light_distance(ctx: WindowContext) -> np.ndarray:
+    """Distance to the nearest light's centre in its radii (:data:`NO_LIGHT_RADII` without)."""
+    ev = ctx.events
+    out = np.full(ev.size, NO_LIGHT_RADII, np.float64)
+    if not ctx.has_lights or not ev.size:
+        return out
+    from ..lights.cells import _lights
+
+    _, found, _ = _lights(ev, ctx.sensor_size, ctx.span_us, _CELL, ctx.lights)
+    x, y = ev["x"].astype(np.float64), ev["y"].astype(np.float64)
+    for ys, xs, own, radius in found:
+        py, px = np.nonzero(own)
+        cy, cx = py.mean() + ys.start, px.mean() + xs.start
+        if not ctx.lights[int(cy) // _CELL, int(cx) // _CELL]:
+            continue  # dense scene, not a light (window_lights left it out)
+        d = np.hypot(x - cx, y - cy) / max(radius, 1.0)
+        np.minimum(out, d, out=out)
+    return np.minimum(out, NO_LIGHT_RADII)
+
+
+def _since_pixel(ev: np.ndarray, width: int, window_us: int) -> np.ndarray:
+    """Microseconds since the pixel's previous event in the window (``window_us`` for its first)."""
+    pixel = ev["y"].astype(np.int64) * width + ev["x"]
+    order = np.argsort(pixel, kind="stable")  # stable: time order within a pixel
+    p, t = pixel[order], ev["t"].astype(np.int64)[order]
+    gap = np.full(ev.size, window_us, np.int64)
+    same = p[1:] == p[:-1]
+    gap[1:][same] = (t[1:] - t[:-1])[same]
+    out = np.empty(ev.size, np.int64)
+    out[order] = gap
+    return out
+
+
+def window_features(
+    ctx: WindowContext,
+    net_logit: np.ndarray,
+    names: Sequence[str] | None = None,
+    *,
+    window_us: int = 20_000,
+) -> np.ndarray:
+    """The features of each event of one window ``(n, len(names))`` (float32).
+
+    Parameters
+    ----------
+    ctx : WindowContext
+        The window (its events, sensor, covered span, and each event's 5x5
+        ``support``; counted here when the context has none).
+    net_logit : numpy.ndarray
+        The mask network's keep logit of each event.
+    names : sequence of str, optional
+        The columns (default: every :data:`FEATURES` name, in order).
+    window_us : int
+        The model's window: rates over a shorter covered span are scaled up to it.
+    """
+    names = tuple(FEATURES) if names is None else check_feature_names(names)
+    ev = ctx.events
+    n = ev.size
+    if net_logit.shape != (n,):
+        raise ValueError(f"net_logit has shape {net_logit.shape}, expected ({n},)")
+    width, height = int(ctx.sensor_size[0]), int(ctx.sensor_size[1])
+    scale = window_us / max(int(ctx.span_us), 1)
+    x, y = ev["x"].astype(np.int64), ev["y"].astype(np.int64)
+    on = (ev["p"] != 0).astype(np.float64)
+    sign = 2.0 * on - 1.0
+    need = set(names)
+    cols: dict[str, np.ndarray] = {}
+
+    def support() -> np.ndarray:
+        if ctx.support is None:
+            from .mask_kernels import event_support
+
+            ctx.support = event_support(ev, ctx.sensor_size)
+        return ctx.support
+
+    cols["net_logit"] = np.asarray(net_logit, np.float64)
+    cols["polarity"] = on
+    cols["light_free"] = np.full(n, 0.0 if ctx.has_lights else 1.0)
+    if "light_distance" in need:
+        cols["light_distance"] = np.log1p(_light_distance(ctx))
+    if "halo" in need:
+        from ..rules.halo import in_halo_prior
+
+        cols["halo"] = in_halo_prior(ev, ctx.sensor_size, ctx.span_us, lights=ctx.lights)
+    if "ghost" in need:
+        from ..rules.ghost import in_ghost_prior
+
+        cols["ghost"] = in_ghost_prior(
+            ev, ctx.sensor_size, ctx.span_us, lights=ctx.lights, cells=ctx.ghost_cells
+        )
+    if "spike" in need:
+        cols["spike"] = ctx.on_spikes
+    if "far" in need:
+        from ..rules.halo import far_from_lights
+
+        cols["far"] = far_from_lights(
+            ev, ctx.sensor_size, ctx.span_us, lights=ctx.lights, exclude=ctx.ghost_cells
+        )
+    if "support" in need:
+        cols["support"] = np.log1p(support().astype(np.float64))
+    if need & {"crowded", "field"}:
+        from ..rules.light_free import crowded_isolated, scatter_field
+
+        crowded = (
+            crowded_isolated(ev, ctx.sensor_size, support() <= 2, z=3.0)
+            if n
+            else np.zeros(0, bool)
+        )
+        cols["crowded"] = crowded
+        if "field" in need:
+            cols["field"] = (
+                scatter_field(ev, ctx.sensor_size, crowded, span_us=ctx.span_us)
+                if n
+                else np.zeros(0, bool)
+            )
+    if need & {"rate_pixel", "balance_pixel"}:
+        pixel = y * width + x
+        count = np.bincount(pixel, minlength=width * height)
+        signed = np.bincount(pixel, weights=sign, minlength=width * height)
+        cols["rate_pixel"] = np.log1p(count[pixel] * scale)
+        cols["balance_pixel"] = signed[pixel] / count[pixel]
+    h, w = -(-height // _CELL), -(-width // _CELL)
+    cid = (y // _CELL) * w + x // _CELL
+    if need & {"rate_8", "rate_32", "rate_128", "balance_8", "balance_32"}:
+        per_cell = np.bincount(cid, minlength=h * w).reshape(h, w).astype(np.float64)
+        signed_cell = np.bincount(cid, weights=sign, minlength=h * w).reshape(h, w)
+        for name, radius in (("8", 0), ("32", 2), ("128", 8)):
+            count = _box(per_cell, radius) if radius else per_cell
+            area = _box_area(h, w, radius, _CELL, (width, height))
+            cols[f"rate_{name}"] = np.log1p((count / area).ravel()[cid] * scale)
+            if name != "128":
+                signed = _box(signed_cell, radius) if radius else signed_cell
+                cols[f"balance_{name}"] = (signed / np.maximum(count, 1.0)).ravel()[cid]
+    cols["rate_window"] = np.full(n, np.log1p(n / (width * height) * scale))
+    if "since_pixel" in need:
+        cols["since_pixel"] = np.log1p(_since_pixel(ev, width, window_us) / 1000.0)
+    if "centre_distance" in need:
+        half = 0.5 * np.hypot(width, height)
+        cols["centre_distance"] = np.hypot(x + 0.5 - width / 2, y + 0.5 - height / 2) / half
+    out = np.empty((n, len(names)), np.float32)
+    for k, name in enumerate(names):
+        out[:, k] = cols[name]
+    return out
