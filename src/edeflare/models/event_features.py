@@ -103,9 +103,7 @@ def _box(per_cell: np.ndarray, radius: int) -> np.ndarray:
     y1 = np.clip(np.arange(h) + radius + 1, 0, h)
     x0 = np.clip(np.arange(w) - radius, 0, w)
     x1 = np.clip(np.arange(w) + radius + 1, 0, w)
-    return (
-        table[y1][:, x1] - table[y0][:, x1] - table[y1][:, x0] + table[y0][:, x0]
-    )
+    return table[y1][:, x1] - table[y0][:, x1] - table[y1][:, x0] + table[y0][:, x0]
 
 
 def _box_area(h: int, w: int, radius: int, cell: int, sensor: tuple[int, int]) -> np.ndarray:
@@ -222,9 +220,7 @@ def window_features(
         from ..rules.light_free import crowded_isolated, scatter_field
 
         crowded = (
-            crowded_isolated(ev, ctx.sensor_size, support() <= 2, z=3.0)
-            if n
-            else np.zeros(0, bool)
+            crowded_isolated(ev, ctx.sensor_size, support() <= 2, z=3.0) if n else np.zeros(0, bool)
         )
         cols["crowded"] = crowded
         if "field" in need:

@@ -21,6 +21,7 @@ Examples
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -88,7 +89,7 @@ class EventHead(nn.Module):
         self.register_buffer("mean", torch.zeros(n))
         self.register_buffer("scale", torch.ones(n))
         widths = [n, *self.hidden, 1]
-        self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths[:-1], widths[1:]))
+        self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in itertools.pairwise(widths))
 
     def spec(self) -> dict[str, Any]:
         """The card's ``head`` entry of this head."""
@@ -126,7 +127,7 @@ class EventHead(nn.Module):
 
 
 def head_logits(params: Mapping[str, Any], features: np.ndarray) -> np.ndarray:
-    """The head's keep logits of ``(n, F)`` features (float32), from :meth:`EventHead.numpy_params`."""
+    """The keep logits of ``(n, F)`` features (float32), from :meth:`EventHead.numpy_params`."""
     z = np.asarray(features, np.float32)
     last = len(params["weights"]) - 1
     for k, (w, b) in enumerate(zip(params["weights"], params["biases"], strict=True)):
