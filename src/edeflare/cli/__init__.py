@@ -39,6 +39,7 @@ from . import (
     score,
     simulate,
     train,
+    train_head,
     view,
 )
 
@@ -118,6 +119,7 @@ COMMANDS = (
     simulate,
     pair,
     train,
+    train_head,
     bundle,
     export,
     ablate,

@@ -1,0 +1,110 @@
+"""``edeflare train-head``: learn a mask model's per-event keep head on simulated pairs."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+HELP = (
+    "Train a learned keep head (the rules' evidence and more, weighed from data) over a mask "
+    "model's network on paired sequences; its threshold is chosen on their test splits."
+)
+
+
+def _widths(text: str) -> tuple[int, ...]:
+    try:
+        widths = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        widths = (0,)
+    if any(w < 1 for w in widths):
+        raise argparse.ArgumentTypeError(
+            f"hidden must be positive widths separated by commas (e.g. 32,16; '' for none), "
+            f"got {text!r}"
+        )
+    return widths
+
+
+def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "train-head",
+        help=HELP,
+        description=HELP + " Writes RUN/model.safetensors (the network, the head, a card "
+        "with the threshold and no rule shifts) and RUN/head.json (the threshold table); "
+        "the features drawn from the data are kept in RUN, so a rerun goes on from them.",
+        **kwargs,
+    )
+    p.add_argument(
+        "data",
+        type=Path,
+        nargs="+",
+        help="dataset folders (with train/ and test/), or folders of them (a mixture's parts)",
+    )
+    p.add_argument("--out", type=Path, required=True, help="run folder")
+    p.add_argument(
+        "--weights",
+        default="night",
+        help="the mask model whose network the head reads (a .safetensors file or a bundled "
+        "model's name)",
+    )
+    p.add_argument(
+        "--features",
+        help="the features, comma-separated (default: every one of "
+        "edeflare.models.event_features.FEATURES; docs/training.md lists them)",
+    )
+    p.add_argument("--hidden", type=_widths, default=(32, 16), help="hidden widths, e.g. 32,16")
+    p.add_argument(
+        "--per-window", type=int, default=3000, help="training events drawn per window and class"
+    )
+    p.add_argument("--epochs", type=int, default=8)
+    p.add_argument("--lr", type=float, default=3e-3)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Collect the features, fit the head, choose its threshold, write the run."""
+    from ..errors import ParameterError
+    from ..models.event_features import FEATURES, check_feature_names
+    from ..models.head_training import HeadTrainingConfig, train_head
+    from ..models.infer import resolve_weights
+
+    for name in ("per_window", "epochs"):
+        if getattr(args, name) < 1:
+            raise ParameterError(f"--{name.replace('_', '-')} must be at least 1")
+    if not args.lr > 0:
+        raise ParameterError(f"--lr must be positive, got {args.lr}")
+    features = (
+        tuple(FEATURES)
+        if args.features is None
+        else check_feature_names(
+            [f.strip() for f in args.features.split(",") if f.strip()], "--features"
+        )
+    )
+    config = HeadTrainingConfig(
+        features=features,
+        hidden=tuple(args.hidden),
+        per_window=args.per_window,
+        epochs=args.epochs,
+        lr=args.lr,
+        seed=args.seed,
+    )
+    command = "edeflare " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "edeflare train-head"
+    summary = train_head(
+        args.data,
+        resolve_weights(args.weights),
+        args.out,
+        config,
+        command=command,
+        progress=not args.no_progress,
+    )
+    best = max(summary["threshold_table"], key=lambda r: r["score"])
+    print(
+        f"keep threshold {summary['keep_threshold']:.2f} (score {best['score']:.3f} on "
+        f"{summary['chosen_on']}); {summary['train_events']:,} training events"
+    )
+    print(f"wrote {args.out / 'model.safetensors'} and {args.out / 'head.json'}")
+    return 0

@@ -1,0 +1,362 @@
+r"""Train a learned keep head on simulated pairs, and choose its threshold on held-out ones.
+
+The recipe (``edeflare train-head``):
+
+1. **Labels.** Each input event of a training pair is *scene* where the ground
+   truth holds an event of the same pixel and polarity within ``tolerance_us``
+   (matched one to one, in time order: :func:`keep_labels`), *flare* otherwise.
+   For keep-only targets (``gt`` a subset of ``input``) this is membership.
+2. **Features.** The pair's input is cut into the model's windows; the base mask
+   network gives each event its keep logit (no rules) and
+   :func:`~edeflare.models.event_features.window_features` its evidence.
+   Up to ``per_window`` events of each class are drawn per window, so every window
+   (sparse or dense, small sensor or large) weighs alike.
+3. **Fit.** :class:`~edeflare.models.event_head.EventHead`, standardised on its
+   training events, trained with Adam on the balanced cross-entropy of
+   :math:`\sigma(h + \ln 3)` (the mask's keep probability).
+4. **Threshold.** On the test splits of the same datasets (sequences never
+   trained on; never a real recording) the keep threshold is the one with the best
+   mean, over the datasets, of the harmonic mean of flare removed and scene kept.
+
+The collected features are cached in the run folder (``features-*.npz``, written
+atomically, named by what made them), so a rerun after a kill goes on from there.
+
+Examples
+--------
+>>> from edeflare.events import make_events
+>>> inp = make_events([0, 10, 20, 30], [1, 1, 2, 3], [0, 0, 0, 0], [1, 1, 0, 1])
+>>> gt = make_events([12, 31], [1, 3], [0, 0], [1, 1])
+>>> keep_labels(inp, gt, tolerance_us=5).tolist()   # one gt event for the two at (1, 0)
+[False, True, False, True]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+import torch
+
+from .._progress import progress_bar
+from ..errors import EdeflareError
+from ..events import SensorSize
+from ..io._atomic import atomic_path
+from ..io.sequence import file_sha256, list_sequences, read_sequence
+from ..lights.cells import covered_us
+from ..rules import WindowContext
+from .event_features import FEATURES, window_features
+from .event_head import EventHead, head_logits
+
+__all__ = [
+    "HeadTrainingConfig",
+    "choose_threshold",
+    "collect_features",
+    "dataset_folders",
+    "fit_head",
+    "keep_labels",
+    "train_head",
+]
+
+LN3 = math.log(3.0)
+
+
+# ----------------------------------------------------------------------------- labels
+
+
+@numba.njit(cache=True)
+def _match(key_i, t_i, key_g, t_g, tol):  # pragma: no cover - compiled
+    """Inputs (sorted by key, time) matched one to one to gt events (sorted alike)."""
+    out = np.zeros(key_i.size, np.bool_)
+    j = 0
+    for i in range(key_i.size):
+        while j < key_g.size and (
+            key_g[j] < key_i[i] or (key_g[j] == key_i[i] and t_g[j] < t_i[i] - tol)
+        ):
+            j += 1
+        if j < key_g.size and key_g[j] == key_i[i] and t_g[j] <= t_i[i] + tol:
+            out[i] = True
+            j += 1
+    return out
+
+
+def keep_labels(inp: np.ndarray, gt: np.ndarray, tolerance_us: int = 1_000) -> np.ndarray:
+    """Which input events the ground truth holds: one gt event of the same pixel and
+    polarity within ``tolerance_us`` each, matched in time order (True: scene, keep)."""
+
+    def keys(ev: np.ndarray) -> np.ndarray:
+        return (ev["y"].astype(np.int64) * 65536 + ev["x"]) * 2 + (ev["p"] != 0)
+
+    ki, kg = keys(inp), keys(gt)
+    oi = np.lexsort((inp["t"], ki))
+    og = np.lexsort((gt["t"], kg))
+    matched = _match(
+        ki[oi], inp["t"].astype(np.int64)[oi], kg[og], gt["t"].astype(np.int64)[og],
+        int(tolerance_us),
+    )  # fmt: skip
+    out = np.empty(inp.size, bool)
+    out[oi] = matched
+    return out
+
+
+# ----------------------------------------------------------------------------- data
+
+
+def dataset_folders(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
+    """The dataset folders (each with ``train/`` or ``test/``) of ``paths``: a dataset
+    itself, or a folder of datasets (a mixture's parts), in name order."""
+    out: list[Path] = []
+    for path in map(Path, paths):
+        if (path / "train").is_dir() or (path / "test").is_dir():
+            out.append(path)
+            continue
+        parts = sorted(p for p in path.iterdir() if (p / "train").is_dir()) if path.is_dir() else []
+        if not parts:
+            raise EdeflareError(
+                f"{path}: not a dataset (no train/ or test/ folder) nor a folder of them"
+            )
+        out += parts
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class HeadTrainingConfig:
+    """How a head is trained (recorded in the card's command and the caches' names)."""
+
+    features: tuple[str, ...] = tuple(FEATURES)
+    hidden: tuple[int, ...] = (32, 16)
+    per_window: int = 3_000
+    """Events of each class drawn per training window."""
+    val_per_window: int = 20_000
+    """Events drawn per validation window (classes as they come)."""
+    tolerance_us: int = 1_000
+    epochs: int = 8
+    batch_size: int = 4_096
+    lr: float = 3e-3
+    seed: int = 0
+
+
+def _windows(events: np.ndarray, start: int, end: int, window_us: int):
+    """``(window_start, slice)`` of a sorted stream cut into the model's windows."""
+    t = events["t"]
+    for s in range(int(start), int(end), int(window_us)):
+        lo, hi = np.searchsorted(t, [s, s + window_us])
+        if hi > lo:
+            yield s, slice(int(lo), int(hi))
+
+
+def collect_features(
+    files: Sequence[Path],
+    window_logits: Callable[[list[tuple[int, np.ndarray]], SensorSize], list[np.ndarray]],
+    window_us: int,
+    config: HeadTrainingConfig,
+    *,
+    balanced: bool,
+    progress: bool = True,
+    desc: str = "features",
+) -> dict[str, np.ndarray]:
+    """Features, labels and each row's file index of the events drawn from ``files``.
+
+    ``window_logits`` is the base network's per-event keep logits of a batch of
+    windows (:meth:`~edeflare.models.infer.ModelDeflarer.window_logits`, no rules).
+    """
+    rng = np.random.default_rng(config.seed)
+    xs, ys, fs = [], [], []
+    for k, path in enumerate(progress_bar(files, enabled=progress, desc=desc, unit="file")):
+        inp, gt, size, start, end = read_sequence(path)
+        labels = keep_labels(inp, gt, config.tolerance_us)
+        for s, part in _windows(inp, start, end, window_us):
+            ev = inp[part]
+            logit = window_logits([(s, ev)], size)[0]
+            ctx = WindowContext(ev, size, covered_us(ev, s, window_us))
+            f = window_features(ctx, logit, config.features, window_us=window_us)
+            y = labels[part]
+            if balanced:
+                take = np.concatenate(
+                    [_draw(rng, np.flatnonzero(y == c), config.per_window) for c in (False, True)]
+                )
+            else:
+                take = _draw(rng, np.arange(ev.size), config.val_per_window)
+            xs.append(f[take])
+            ys.append(y[take])
+            fs.append(np.full(take.size, k, np.int32))
+    if not xs:
+        raise EdeflareError("no events to learn from in " + ", ".join(map(str, files[:3])))
+    return {"x": np.concatenate(xs), "y": np.concatenate(ys), "source": np.concatenate(fs)}
+
+
+def _draw(rng: np.random.Generator, idx: np.ndarray, n: int) -> np.ndarray:
+    return idx if idx.size <= n else np.sort(rng.choice(idx, n, replace=False))
+
+
+# ----------------------------------------------------------------------------- fit
+
+
+def fit_head(
+    x: np.ndarray, y: np.ndarray, config: HeadTrainingConfig, *, progress: bool = True
+) -> EventHead:
+    """A head fitted to features ``x`` and labels ``y`` (True: keep), classes weighed alike."""
+    torch.manual_seed(config.seed)
+    head = EventHead(config.features, config.hidden)
+    xt = torch.from_numpy(np.ascontiguousarray(x, np.float32))
+    yt = torch.from_numpy(y.astype(np.float32))
+    head.standardise_on(xt)
+    keep_share = float(yt.mean())
+    if not 0.0 < keep_share < 1.0:
+        raise EdeflareError("the training events are all of one class (all flare or all scene)")
+    weight = torch.where(yt > 0.5, 0.5 / keep_share, 0.5 / (1.0 - keep_share))
+    opt = torch.optim.Adam(head.parameters(), lr=config.lr)
+    steps = config.epochs * max(1, -(-len(yt) // config.batch_size))
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
+    gen = torch.Generator().manual_seed(config.seed)
+    bar = progress_bar(total=steps, enabled=progress, desc="fit", unit="step")
+    head.train()
+    for _ in range(config.epochs):
+        order = torch.randperm(len(yt), generator=gen)
+        for lo in range(0, len(yt), config.batch_size):
+            b = order[lo : lo + config.batch_size]
+            logit = head(xt[b]) + LN3
+            loss = torch.nn.functional.binary_cross_entropy_with_logits(
+                logit, yt[b], weight=weight[b]
+            )
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            sched.step()
+            bar.update()
+    bar.close()
+    return head.eval()
+
+
+def choose_threshold(
+    logits: np.ndarray, y: np.ndarray, groups: np.ndarray
+) -> tuple[float, list[dict[str, float]]]:
+    """The keep threshold with the best mean over ``groups`` of the harmonic mean of flare
+    removed and scene kept, and the table of every candidate (0.05 to 0.95).
+
+    Examples
+    --------
+    >>> logits = np.array([-3.0, -2.5, 0.0, 1.0])     # keep probability sigma(l + ln 3)
+    >>> thr, _ = choose_threshold(logits, np.array([False, False, True, True]), np.zeros(4))
+    >>> 0.1 < thr < 0.75
+    True
+    """
+    prob = 1.0 / (1.0 + np.exp(-(logits.astype(np.float64) + LN3)))
+    table = []
+    for thr in np.round(np.arange(0.05, 0.951, 0.05), 2):
+        kept = prob > thr
+        scores = []
+        for g in np.unique(groups):
+            sel = groups == g
+            flare, scene = sel & ~y, sel & y
+            removed = 1.0 - kept[flare].mean() if flare.any() else np.nan
+            scene_kept = kept[scene].mean() if scene.any() else np.nan
+            terms = [v for v in (removed, scene_kept) if not np.isnan(v)]
+            scores.append(
+                0.0 if min(terms, default=0) == 0 else len(terms) / sum(1 / v for v in terms)
+            )
+        table.append({"threshold": float(thr), "score": float(np.mean(scores))})
+    best = max(table, key=lambda r: r["score"])
+    return best["threshold"], table
+
+
+# ----------------------------------------------------------------------------- the run
+
+
+def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kind: str) -> str:
+    h = hashlib.sha256()
+    h.update(file_sha256(base).encode())
+    h.update(json.dumps([dataclasses.asdict(config), kind], sort_keys=True).encode())
+    for f in files:
+        h.update(f"{f.parent.parent.name}/{f.parent.name}/{f.name}:{f.stat().st_size}".encode())
+    return h.hexdigest()[:16]
+
+
+def _cached(path: Path, make: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    if path.is_file():
+        with np.load(path) as z:
+            return {k: z[k] for k in z.files}
+    data = make()
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, **data)
+    return data
+
+
+def train_head(
+    data: Sequence[str | os.PathLike[str]],
+    base_weights: str | os.PathLike[str],
+    run_dir: str | os.PathLike[str],
+    config: HeadTrainingConfig | None = None,
+    *,
+    command: str = "",
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Train a keep head on ``data``'s training splits over the ``base_weights`` mask
+    network; write ``run_dir/model.safetensors`` (network, head, card with the threshold
+    chosen on the test splits) and ``run_dir/head.json``; return that summary."""
+    from .infer import ModelDeflarer
+    from .weights import load_model, save_model
+
+    config = config or HeadTrainingConfig()
+    run = Path(run_dir)
+    run.mkdir(parents=True, exist_ok=True)
+    folders = dataset_folders(data)
+    base = Path(base_weights)
+    net, card = load_model(base)
+    if getattr(net, "head", None) is not None:
+        del net.head  # a fresh head over the same network
+    deflarer = ModelDeflarer(base, runtime="torch", batch_windows=1, **{k: 0 for k in card.rules})
+    deflarer.head_params = None
+    summary_files: dict[str, list[str]] = {}
+    sets = {}
+    for split, balanced in (("train", True), ("test", False)):
+        files = [f for d in folders if (d / split).is_dir() for f in list_sequences(d / split)]
+        if not files:
+            raise EdeflareError(f"no {split} sequences in {', '.join(map(str, folders))}")
+        summary_files[split] = [str(f) for f in files]
+        key = _identity(files, base, config, split)
+        sets[split] = _cached(
+            run / f"features-{split}-{key}.npz",
+            lambda files=files, balanced=balanced, split=split: collect_features(
+                files, deflarer.window_logits, deflarer.window_us, config,
+                balanced=balanced, progress=progress, desc=split,
+            ),
+        )  # fmt: skip
+    train, val = sets["train"], sets["test"]
+    head = fit_head(train["x"], train["y"], config, progress=progress)
+    val_files = summary_files["test"]
+    groups = np.array([Path(val_files[i]).parent.parent.name for i in val["source"]])
+    logits = head_logits(head.numpy_params(), val["x"])
+    threshold, table = choose_threshold(logits, val["y"], groups)
+    net.head = head
+    card = dataclasses.replace(
+        card,
+        head=head.spec(),
+        rules={},
+        keep_threshold=threshold,
+        command=command or card.command,
+        data=" ".join(str(d) for d in folders),
+    )
+    save_model(run / "model.safetensors", net, card)
+    summary = {
+        "keep_threshold": threshold,
+        "threshold_table": table,
+        "chosen_on": "the datasets' test splits: " + ", ".join(sorted(set(groups))),
+        "train_events": int(train["y"].size),
+        "train_keep_share": float(train["y"].mean()),
+        "val_events": int(val["y"].size),
+        "config": dataclasses.asdict(config),
+        "base_weights": str(base),
+        "base_sha256": file_sha256(base),
+    }
+    with atomic_path(run / "head.json") as tmp:
+        tmp.write_text(json.dumps(summary, indent=1) + "\n")
+    return summary

@@ -1,0 +1,282 @@
+"""The learned keep head: its features by hand, its numpy form, its card, its training."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from conftest import random_events, same_events
+from edeflare import deflare
+from edeflare.events import make_events
+from edeflare.io.dsec import write_dsec_groups
+from edeflare.models import create_model
+from edeflare.models.event_features import FEATURES, NO_LIGHT_RADII, window_features
+from edeflare.models.event_head import EventHead, head_logits
+from edeflare.models.head_training import (
+    HeadTrainingConfig,
+    choose_threshold,
+    keep_labels,
+    train_head,
+)
+from edeflare.models.infer import ModelDeflarer
+from edeflare.models.weights import ModelCard, WeightsError, load_model, read_card, save_model
+from edeflare.rules.context import WindowContext
+
+NAMES = list(FEATURES)
+
+
+def column(table: np.ndarray, name: str) -> list[float]:
+    return [round(float(v), 5) for v in table[:, NAMES.index(name)]]
+
+
+# ----------------------------------------------------------------------------- features
+
+
+def test_features_of_a_small_window_by_hand():
+    # three events at pixel (1, 1) (ON, OFF, ON at 0, 2, 5 ms), one at (9, 6) (ON at 7 ms)
+    ev = make_events([0, 2_000, 5_000, 7_000], [1, 1, 1, 9], [1, 1, 1, 6], [1, 0, 1, 1])
+    ctx = WindowContext(ev, (16, 8), 20_000)
+    t = window_features(ctx, np.array([0.5, -1.0, 2.0, 0.0], np.float32))
+    assert column(t, "net_logit") == [0.5, -1.0, 2.0, 0.0]
+    assert column(t, "polarity") == [1.0, 0.0, 1.0, 1.0]
+    assert column(t, "light_free") == [1.0] * 4
+    assert column(t, "light_distance") == [round(math.log1p(NO_LIGHT_RADII), 5)] * 4
+    assert column(t, "support") == [round(math.log1p(2), 5)] * 3 + [0.0]  # two others at (1, 1)
+    assert column(t, "rate_pixel") == [round(math.log1p(3), 5)] * 3 + [round(math.log1p(1), 5)]
+    assert column(t, "balance_pixel") == [round(1 / 3, 5)] * 3 + [1.0]
+    # cells of 8x8: (1, 1) in cell (0, 0) with 3 events, (9, 6) in cell (0, 1) with 1
+    assert column(t, "rate_8") == [round(math.log1p(3 / 64), 5)] * 3 + [
+        round(math.log1p(1 / 64), 5)
+    ]
+    # 32x32 squares cover the whole 16x8 sensor: 4 events over 128 pixels, balance 2/4
+    assert column(t, "rate_32") == [round(math.log1p(4 / 128), 5)] * 4
+    assert column(t, "balance_32") == [0.5] * 4
+    assert column(t, "rate_window") == [round(math.log1p(4 / 128), 5)] * 4
+    # ms since the pixel's previous event; the window (20 ms) for a pixel's first
+    assert column(t, "since_pixel") == [round(math.log1p(v), 5) for v in (20, 2, 3, 20)]
+    half = 0.5 * math.hypot(16, 8)
+    assert column(t, "centre_distance")[3] == round(math.hypot(9.5 - 8, 6.5 - 4) / half, 5)
+
+
+def test_rates_of_a_partly_covered_window_are_scaled_to_a_whole_one():
+    ev = make_events([0, 1_000], [1, 1], [1, 1], [1, 1])
+    whole = window_features(WindowContext(ev, (8, 8), 20_000), np.zeros(2, np.float32))
+    quarter = window_features(WindowContext(ev, (8, 8), 5_000), np.zeros(2, np.float32))
+    assert column(whole, "rate_pixel") == [round(math.log1p(2), 5)] * 2
+    assert column(quarter, "rate_pixel") == [round(math.log1p(8), 5)] * 2
+
+
+def test_distance_to_a_light_is_counted_in_its_radii():
+    yy, xx = np.mgrid[16:32, 40:56]  # a 16x16 block firing 1 event per pixel and ms
+    n = 20 * xx.size
+    lamp = make_events(
+        np.arange(n) * 20_000 // n, np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20), np.ones(n)
+    )
+    probe = make_events([19_999], [47 + 40], [23], [1])  # 40 px right of the centre (47.5, 23.5)
+    ev = np.concatenate([lamp, probe])
+    ctx = WindowContext(ev, (128, 64), 20_000)
+    assert ctx.has_lights
+    t = window_features(ctx, np.zeros(ev.size, np.float32), ["light_free", "light_distance"])
+    assert t[0, 0] == 0.0
+    assert np.expm1(t[-1, 1]) == pytest.approx(math.hypot(39.5, 0.5) / 8.0, rel=1e-4)  # radius 8
+
+
+def test_a_feature_subset_is_the_full_tables_columns(rng):
+    ev = random_events(rng, 3000, (64, 48), t0=0, span_us=20_000)
+    logit = rng.normal(size=ev.size).astype(np.float32)
+    full = window_features(WindowContext(ev, (64, 48), 20_000), logit)
+    some = ["since_pixel", "net_logit", "crowded", "rate_128"]
+    part = window_features(WindowContext(ev, (64, 48), 20_000), logit, some)
+    np.testing.assert_array_equal(part, full[:, [NAMES.index(n) for n in some]])
+
+
+# ----------------------------------------------------------------------------- the head
+
+
+def test_numpy_head_equals_the_torch_head_with_its_standardisation():
+    torch.manual_seed(0)
+    head = EventHead(["net_logit", "support", "halo"], hidden=(8, 4))
+    x = torch.randn(50, 3) * torch.tensor([3.0, 0.5, 1.0]) + torch.tensor([1.0, 2.0, 0.0])
+    head.standardise_on(x)
+    for layer in head.layers:  # random, not the initial, weights
+        torch.nn.init.normal_(layer.weight)
+        torch.nn.init.normal_(layer.bias)
+    with torch.no_grad():
+        want = head(x).numpy()
+    np.testing.assert_allclose(
+        head_logits(head.numpy_params(), x.numpy()), want, rtol=1e-5, atol=1e-5
+    )
+
+
+def passthrough_head() -> EventHead:
+    """A head whose logit is the network's (a logistic layer of weight 1 on net_logit)."""
+    head = EventHead(["net_logit", "polarity"], hidden=())
+    with torch.no_grad():
+        head.layers[0].weight.copy_(torch.tensor([[1.0, 0.0]]))
+        head.layers[0].bias.zero_()
+    return head
+
+
+def save_with_head(path, head, threshold=0.5, preset="mask.lite", seed=0):
+    torch.manual_seed(seed)
+    net = create_model(preset)
+    for p in net.parameters():  # not the identity: the network drops some events
+        torch.nn.init.normal_(p, std=0.3)
+    save_model(
+        path.with_name("base.safetensors"), net, ModelCard(preset=preset, keep_threshold=threshold)
+    )
+    net.head = head
+    card = ModelCard(preset=preset, keep_threshold=threshold, head=head.spec())
+    save_model(path, net, card)
+    return path.with_name("base.safetensors")
+
+
+def test_a_passthrough_head_decides_as_the_network_alone(tmp_path, rng):
+    base = save_with_head(tmp_path / "head.safetensors", passthrough_head())
+    ev = random_events(rng, 20_000, (64, 48), t0=0, span_us=100_000)
+    without = deflare(ev, (64, 48), "model", weights=base)
+    with_head = deflare(ev, (64, 48), "model", weights=tmp_path / "head.safetensors")
+    assert 0 < without.size < ev.size  # the network drops some, keeps some
+    assert same_events(with_head, without)
+
+
+def test_a_head_that_drops_everything_drops_everything(tmp_path, rng):
+    head = passthrough_head()
+    with torch.no_grad():
+        head.layers[0].bias.fill_(-100.0)
+    save_with_head(tmp_path / "h.safetensors", head)
+    ev = random_events(rng, 5_000, (64, 48), t0=0, span_us=40_000)
+    assert deflare(ev, (64, 48), "model", weights=tmp_path / "h.safetensors").size == 0
+
+
+def test_the_head_rides_in_the_card_and_the_weights_file(tmp_path):
+    save_with_head(tmp_path / "h.safetensors", passthrough_head())
+    card = read_card(tmp_path / "h.safetensors")
+    assert card.head == {"features": ["net_logit", "polarity"], "hidden": []}
+    model, _ = load_model(tmp_path / "h.safetensors")
+    assert isinstance(model.head, EventHead) and model.head.feature_names == (
+        "net_logit",
+        "polarity",
+    )
+    assert "head" not in ModelCard(preset="mask.lite").to_dict()  # cards without one unchanged
+
+
+def test_a_card_naming_an_unknown_feature_fails_to_load_naming_it():
+    with pytest.raises(WeightsError, match="unknown feature 'moon_phase'"):
+        ModelCard.from_dict({"preset": "mask.lite", "head": {"features": ["moon_phase"]}})
+    with pytest.raises(WeightsError, match=r"unknown keys \['hiden'\]"):
+        ModelCard.from_dict(
+            {"preset": "mask.lite", "head": {"features": ["net_logit"], "hiden": [3]}}
+        )
+
+
+def test_a_head_on_a_voxel_model_is_refused(tmp_path):
+    net = create_model("unet2d.tiny")
+    net.head = passthrough_head()
+    save_model(
+        tmp_path / "v.safetensors", net, ModelCard(preset="unet2d.tiny", head=net.head.spec())
+    )
+    with pytest.raises(Exception, match="keep head needs a mask model"):
+        ModelDeflarer(tmp_path / "v.safetensors")
+
+
+@pytest.mark.parametrize("size", [(64, 64), (16, 12), (1, 1)])
+def test_sensors_smaller_than_the_context_are_de_flared(tmp_path, rng, size):
+    save_with_head(tmp_path / "h.safetensors", passthrough_head())
+    ev = random_events(rng, 3_000, size, t0=0, span_us=60_000)
+    out = deflare(ev, size, "model", weights=tmp_path / "h.safetensors")
+    assert out.size <= ev.size and np.isin(out["t"], ev["t"]).all()
+
+
+def test_onnx_export_carries_the_head_and_decides_alike(tmp_path, rng):
+    pytest.importorskip("onnxruntime")
+    from edeflare.models.export import export_onnx, onnx_parity
+
+    # a hidden layer of two units: logit 4 (log(1 + support) - 3.1), about half kept here
+    head = EventHead(["net_logit", "support", "rate_8", "since_pixel"], hidden=(2,))
+    with torch.no_grad():
+        head.layers[0].weight.copy_(torch.tensor([[0.0, 1, 0, 0], [0.0, -1, 0, 0]]))
+        head.layers[0].bias.copy_(torch.tensor([-3.1, 3.1]))
+        head.layers[1].weight.copy_(torch.tensor([[4.0, -4.0]]))
+        head.layers[1].bias.zero_()
+    save_with_head(tmp_path / "h.safetensors", head)
+    export_onnx(tmp_path / "h.safetensors", tmp_path / "h.onnx", (64, 48))
+    ev = random_events(rng, 8_000, (64, 48), t0=0, span_us=60_000)
+    windows = [(s, ev[(ev["t"] >= s) & (ev["t"] < s + 20_000)]) for s in (0, 20_000, 40_000)]
+    result = onnx_parity(tmp_path / "h.safetensors", tmp_path / "h.onnx", windows, (64, 48))
+    assert result.decisions == ev.size and result.decisions_differing <= ev.size // 1000
+    a = deflare(ev, (64, 48), "model", weights=tmp_path / "h.safetensors", runtime="torch")
+    b = deflare(ev, (64, 48), "model", weights=tmp_path / "h.onnx")
+    assert abs(a.size - b.size) <= ev.size // 1000 and 0.2 * ev.size < a.size < 0.8 * ev.size
+
+
+# ----------------------------------------------------------------------------- training
+
+
+def test_labels_match_one_to_one_within_the_tolerance():
+    inp = make_events([0, 100, 200, 5_000], [2, 2, 2, 2], [3, 3, 3, 3], [1, 1, 1, 1])
+    gt = make_events([150, 4_500], [2, 2], [3, 3], [1, 1])
+    # 150 takes the first input within 1 ms of it (0); 100 and 200 find it taken
+    assert keep_labels(inp, gt, 1_000).tolist() == [True, False, False, True]
+    other_polarity = make_events([0], [2], [3], [0])
+    assert keep_labels(inp, other_polarity, 1_000).tolist() == [False] * 4
+    assert keep_labels(inp, inp[[1, 3]], 0).tolist() == [False, True, False, True]  # a subset
+
+
+def test_the_threshold_maximises_the_mean_of_both_datasets_scores():
+    # dataset a: keep-probability 0.9 scene, 0.2 flare; b: 0.6 scene, 0.45 flare
+    p = np.array([0.9, 0.2, 0.6, 0.45])
+    logits = np.log(p / (1 - p)) - math.log(3)
+    y = np.array([True, False, True, False])
+    groups = np.array(["a", "a", "b", "b"])
+    threshold, table = choose_threshold(logits, y, groups)
+    assert threshold == 0.45  # 0.45 < t < 0.6 separates both; the lowest such candidate
+    assert max(r["score"] for r in table) == 1.0
+
+
+def _pairs(folder, rng, n_files, size=(48, 32)):
+    """Pairs whose flare is a dense burst in the left half (not in gt), sparse scene right."""
+    for split, k in (("train", n_files), ("test", 1)):
+        for i in range(k):
+            scene = random_events(rng, 300, (size[0] // 2, size[1]), t0=0, span_us=60_000)
+            scene["x"] += size[0] // 2
+            flare = random_events(rng, 3_000, (size[0] // 2, size[1]), t0=0, span_us=60_000)
+            inp = np.sort(np.concatenate([scene, flare]), order="t", kind="stable")
+            write_dsec_groups(folder / split / f"s{i}.h5", {"input": inp, "gt": scene}, size)
+
+
+def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_path, rng):
+    for part in ("a", "b"):
+        _pairs(tmp_path / "mix" / part, rng, 2)
+    base = tmp_path / "base.safetensors"
+    save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+    config = HeadTrainingConfig(
+        features=("net_logit", "rate_8", "rate_32", "polarity"), hidden=(8,), epochs=20, batch_size=256,
+        per_window=500,
+    )  # fmt: skip
+    summary = train_head([tmp_path / "mix"], base, tmp_path / "run", config, progress=False)
+    assert summary["chosen_on"] == "the datasets' test splits: a, b"
+    cached = sorted(p.name for p in (tmp_path / "run").glob("features-*.npz"))
+    assert len(cached) == 2
+    card = read_card(tmp_path / "run" / "model.safetensors")
+    assert card.head["features"] == list(config.features) and card.rules == {}
+    assert card.keep_threshold == summary["keep_threshold"]
+    assert json.loads((tmp_path / "run" / "head.json").read_text())["keep_threshold"] == (
+        card.keep_threshold
+    )
+    _pairs(tmp_path / "new", rng, 0)  # a fresh pair: flare left, scene right
+    from edeflare.io.sequence import read_sequence
+
+    inp, gt, size, *_ = read_sequence(tmp_path / "new" / "test" / "s0.h5")
+    out = deflare(inp, size, "model", weights=tmp_path / "run" / "model.safetensors")
+    left = out["x"] < size[0] // 2
+    assert left.sum() < 0.1 * (inp["x"] < size[0] // 2).sum()  # flare removed
+    assert (~left).sum() > 0.9 * gt.size  # scene kept
+    # a rerun reads the cached features (same names), and fits the same head
+    again = train_head([tmp_path / "mix"], base, tmp_path / "run", config, progress=False)
+    assert again["keep_threshold"] == summary["keep_threshold"]
+    assert sorted(p.name for p in (tmp_path / "run").glob("features-*.npz")) == cached
