@@ -126,13 +126,12 @@ def save_with_head(path, head, threshold=0.5, preset="mask.lite", seed=0):
     net = create_model(preset)
     for p in net.parameters():  # not the identity: the network drops some events
         torch.nn.init.normal_(p, std=0.3)
-    save_model(
-        path.with_name("base.safetensors"), net, ModelCard(preset=preset, keep_threshold=threshold)
-    )
+    base = path.with_name("base.safetensors")
+    save_model(base, net, ModelCard(preset=preset, keep_threshold=threshold))
     net.head = head
     card = ModelCard(preset=preset, keep_threshold=threshold, head=head.spec())
     save_model(path, net, card)
-    return path.with_name("base.safetensors")
+    return base
 
 
 def test_a_passthrough_head_decides_as_the_network_alone(tmp_path, rng):
@@ -255,9 +254,12 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
     base = tmp_path / "base.safetensors"
     save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
     config = HeadTrainingConfig(
-        features=("net_logit", "rate_8", "rate_32", "polarity"), hidden=(8,), epochs=20, batch_size=256,
+        features=("net_logit", "rate_8", "rate_32", "polarity"),
+        hidden=(8,),
+        epochs=20,
+        batch_size=256,
         per_window=500,
-    )  # fmt: skip
+    )
     summary = train_head([tmp_path / "mix"], base, tmp_path / "run", config, progress=False)
     assert summary["chosen_on"] == "the datasets' test splits: a, b"
     cached = sorted(p.name for p in (tmp_path / "run").glob("features-*.npz"))
