@@ -4,8 +4,10 @@ The recipe (``edeflare train-head``):
 
 1. **Labels.** Each input event of a training pair is *scene* where the ground
    truth holds an event of the same pixel and polarity within ``tolerance_us``
-   (matched one to one, in time order: :func:`keep_labels`), *flare* otherwise.
-   For keep-only targets (``gt`` a subset of ``input``) this is membership.
+   (matched one to one, in time order: :func:`keep_labels`), or where the
+   pair's ``light`` stream (the source through the clean lens, where the
+   simulator stored it) does; *flare* otherwise. For keep-only targets (``gt`` a
+   subset of ``input``) this is membership.
 2. **Features.** The pair's input is cut into the model's windows; the base mask
    network gives each event its keep logit (no rules) and
    :func:`~edeflare.models.event_features.window_features` its evidence.
@@ -172,6 +174,9 @@ def collect_features(
     for k, path in enumerate(progress_bar(files, enabled=progress, desc=desc, unit="file")):
         inp, gt, size, start, end = read_sequence(path)
         labels = keep_labels(inp, gt, config.tolerance_us)
+        light = _light_events(path)
+        if light is not None:  # the light source itself is scene, not flare
+            labels |= keep_labels(inp, light, config.tolerance_us)
         for s, part in _windows(inp, start, end, window_us):
             ev = inp[part]
             logit = window_logits([(s, ev)], size)[0]
@@ -190,6 +195,19 @@ def collect_features(
     if not xs:
         raise EdeflareError("no events to learn from in " + ", ".join(map(str, files[:3])))
     return {"x": np.concatenate(xs), "y": np.concatenate(ys), "source": np.concatenate(fs)}
+
+
+def _light_events(path: Path) -> np.ndarray | None:
+    """The file's ``light`` stream (the source through the clean lens), if it has one."""
+    import h5py
+
+    from ..io.dsec import DsecReader
+
+    with h5py.File(path, "r") as f:
+        if "light/events" not in f:
+            return None
+    with DsecReader(path, group="light/events") as reader:
+        return reader.read()
 
 
 def _draw(rng: np.random.Generator, idx: np.ndarray, n: int) -> np.ndarray:
@@ -273,7 +291,7 @@ def choose_threshold(
 def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kind: str) -> str:
     h = hashlib.sha256()
     h.update(file_sha256(base).encode())
-    h.update(json.dumps([dataclasses.asdict(config), kind], sort_keys=True).encode())
+    h.update(json.dumps([dataclasses.asdict(config), kind, "gt|light"], sort_keys=True).encode())
     for f in files:
         h.update(f"{f.parent.parent.name}/{f.parent.name}/{f.name}:{f.stat().st_size}".encode())
     return h.hexdigest()[:16]
