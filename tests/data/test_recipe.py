@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import json
+
 import h5py
 import numpy as np
 import pytest
 
+from edeflare.cli import main
 from edeflare.data.dsec_flare import DsecFlareConfig
 from edeflare.data.eflare import FlareConfig
 from edeflare.data.generate import generate_dataset
@@ -240,14 +243,13 @@ def test_the_forward_test_sets_are_all_test_and_never_trained_on(tmp_path):
     for name, r in training.items():
         assert r.seed not in {t.seed for t in test_sets}, name
     assert not test_sets & {r for _, r in RECIPES["eflare-mix"].parts}
-    # with ground truth: a small eflare-forward writes input and gt, all in test/
-    tiny = RECIPES["eflare-forward"].replace(
-        sequences=2, test_sequences=2, sensor_size=(48, 36), duration_us=20_000
-    )
-    report = generate_dataset(tiny, tmp_path, progress=False)
-    assert [f["file"] for f in report.manifest["files"]] == [
-        "test/seq_00000.h5", "test/seq_00001.h5"]  # fmt: skip
-    assert not (tmp_path / "train").exists()
+    # with ground truth: a small eflare-forward writes input and gt, all in test/ (also
+    # when the command line asks for fewer sequences)
+    argv = ["simulate", str(tmp_path), "--recipe", "eflare-forward", "--sequences", "2"]
+    assert main([*argv, "--sensor-size", "48x36", "--duration-ms", "20", "--no-progress"]) == 0
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert [f["file"] for f in manifest["files"]] == ["test/seq_00000.h5", "test/seq_00001.h5"]
+    assert manifest["recipe"]["test_sequences"] == 2 and not (tmp_path / "train").exists()
     with h5py.File(tmp_path / "test" / "seq_00000.h5") as f:
         assert f.attrs["variant"] == "forward" and f.attrs["recipe"] == "eflare-forward"
         assert {"input", "gt", "flare", "light", "background"} <= set(f)

@@ -54,7 +54,11 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "through the full forward model, with ground truth), "
         "dsec-flare (15 DSEC windows of 100 ms at 640x480, needs --dsec-root)",
     )
-    p.add_argument("--sequences", type=int, help="number of sequences")
+    p.add_argument(
+        "--sequences",
+        type=int,
+        help="number of sequences (a test set's stay all in test unless --test-sequences)",
+    )
     p.add_argument("--test-sequences", type=int, help="sequences in the test split (the last ones)")
     p.add_argument("--duration-ms", type=float, help="length of a sequence (ms)")
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help="sensor size")
@@ -141,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
     for key in ("sequences", "test_sequences", "sensor_size", "variant", "weights", "seed"):
         if getattr(args, key) is not None:
             changes[key] = getattr(args, key)
+    if "sequences" in changes and "test_sequences" not in changes:
+        if base.test_sequences == base.sequences:  # a test set stays all test
+            changes["test_sequences"] = changes["sequences"]
     if args.duration_ms is not None:
         changes["duration_us"] = round(args.duration_ms * 1000)
     if args.background:
