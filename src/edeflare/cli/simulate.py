@@ -47,7 +47,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "by day); eflare-mix (a mix: 128 sequences in five parts, each its own dataset in "
         "OUT/<part>/: night-346 and day-346 (eflare-night, eflare-day-street), dense-640 and "
         "dense-1280 (dense flare of strong sources through the full forward model at 640x480 "
-        "and 1280x720), sparse-1280 (eflare-night at 1280x720); about 13 minutes with "
+        "and 1280x720), sparse-1280 (eflare-night at 1280x720); 11-15 minutes with "
         "--workers 2 on 2 cores); test sets: "
         "eflare-r-sim (30 at 640x480), eflare-r-sim-mini (20 at 346x260), "
         "eflare-forward (12 at 640x480) and eflare-forward-hd (4 at 1280x720: dense flare "

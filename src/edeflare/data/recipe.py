@@ -14,6 +14,10 @@ under its own key together with the flare kind's defaults. So every dataset
 made before the split keeps its digest and resumes (``tests/data/test_recipe.py``
 pins them). :meth:`Recipe.from_dict` reads that layout; :meth:`Recipe.replace`
 takes the same flat keys.
+
+A :class:`Mix` is a recipe whose parts are recipes (``eflare-mix``): each part is
+generated as a dataset of its own in a folder named after it, and training reads
+the mix's folder as its parts'.
 """
 
 from __future__ import annotations
@@ -571,12 +575,14 @@ _FORWARD = FlareConfig(variant="forward", script=_DENSE_SCRIPT)
 _FORWARD_HD = FlareConfig(variant="forward", script=_DENSE_HD_SCRIPT)
 
 # eflare-mix: dense and sparse flare over night and day streets at three sensor sizes, for a
-# de-flarer that must handle both. One-sequence times on one core (2 CPU cores, 100 ms
-# sequences, written): night-346 about 4 s, day-346 4.5 s, dense-640 14 s, dense-1280 35 s,
-# sparse-1280 23 s; the counts below sum to about 1,300 core-seconds, about 13 minutes with
-# --workers 2 on 2 cores (workers slow each other down by ~20 %). Every part has test
+# de-flarer that must handle both. One-sequence times, one at a time on one core of a 2-core
+# machine (100 ms sequences, simulated and written): night-346 about 4 s, day-346 4.5 s,
+# dense-640 14 s, dense-1280 35 s, sparse-1280 23 s. The counts below sum to about 1,300
+# core-seconds: about 11 minutes with --workers 2 on two idle cores, about 15 allowing for
+# the workers slowing each other down (and a busy machine takes longer). Every part has test
 # sequences (validation) and its own seed; the forward parts and sparse-1280 store input and
-# gt only (no components), to keep the 1280x720 files small.
+# gt only (no components), to keep the 1280x720 files small (about 1.5 GB in all, estimated
+# from the files written while timing).
 _MIX_PARTS = (
     (
         "night-346",
@@ -707,7 +713,8 @@ streets, all test; and the :class:`Mix` ``eflare-mix``, training data for dense 
 flare in five parts: ``night-346`` (eflare-night, 60), ``day-346`` (eflare-day-street, 20),
 ``dense-640`` (the forward model's dense flare, 28 at 640x480), ``dense-1280`` (the same at
 1280x720, 10) and ``sparse-1280`` (eflare-night at 1280x720, 10), each with test
-sequences and its own seed."""
+sequences and its own seed: about 1,300 core-seconds, 11-15 minutes with ``--workers 2``
+on 2 cores (the one-sequence times are in the comment above ``_MIX_PARTS``)."""
 
 
 def list_recipes() -> list[str]:
