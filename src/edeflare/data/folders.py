@@ -36,9 +36,10 @@ from typing import Any
 from ..errors import EventFileError
 from ..io.sequence import list_sequences
 
-__all__ = ["dataset_files", "dataset_folders", "mix_manifest", "sequence_files"]
+__all__ = ["MIX_FORMAT", "dataset_files", "dataset_folders", "mix_manifest", "sequence_files"]
 
-_MIX_FORMAT = "edeflare-mix/1"  # edeflare.data.generate.MIX_FORMAT (not imported: no numba here)
+MIX_FORMAT = "edeflare-mix/1"
+"""The ``format`` of a mix's manifest (written by :func:`edeflare.data.generate.generate_mix`)."""
 
 
 def mix_manifest(folder: str | os.PathLike[str]) -> dict[str, Any] | None:
@@ -56,7 +57,7 @@ def mix_manifest(folder: str | os.PathLike[str]) -> dict[str, Any] | None:
             manifest = json.loads(path.read_text())
         except (OSError, ValueError):
             continue
-        if isinstance(manifest, dict) and manifest.get("format") == _MIX_FORMAT:
+        if isinstance(manifest, dict) and manifest.get("format") == MIX_FORMAT:
             parts = manifest.get("parts")
             if not isinstance(parts, list) or not all(
                 isinstance(p, dict) and isinstance(p.get("folder"), str) for p in parts

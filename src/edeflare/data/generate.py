@@ -92,6 +92,7 @@ from ..sim.optics_scene import OpticsScene
 from ..sim.script import FlareScript
 from .dsec_flare import DsecWindow
 from .eflare import SequenceInputs, draw_inputs
+from .folders import MIX_FORMAT
 from .kinds import STAGES, GenerationError, get_kind
 from .recipe import KINDS, RECIPES, WEIGHTS, FlareConfig, Mix, Recipe, list_recipes
 from .sources import cached_source, check_index, make_background_source
@@ -121,8 +122,6 @@ __all__ = [
 ]
 
 _FORMAT = "edeflare-dataset/1"
-MIX_FORMAT = "edeflare-mix/1"
-"""The ``format`` of a mix's manifest (:func:`generate_mix`)."""
 
 
 def sequence_path(out: str | os.PathLike[str], recipe: Recipe, index: int) -> Path:
