@@ -126,3 +126,19 @@ def test_cli_benchmark_compares_several_named_models(split, tmp_path, capsys):
     assert "already has a row 'raw'" in capsys.readouterr().err
     assert main(["benchmark", str(split), "--model", str(identity), "--model", str(adds)]) == 1
     assert "one unnamed --model" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_forward_test_set_files_at_1280x720_are_benchmarked(tmp_path):
+    """An eflare-forward-hd sequence (the forward model's groups, 1280x720) scores as any."""
+    from edeflare.data.generate import RECIPES, generate_dataset
+
+    one = RECIPES["eflare-forward-hd"].replace(sequences=1, test_sequences=1, duration_us=20_000)
+    generate_dataset(one, tmp_path, progress=False)
+    inp, gt, size, start, end = read_sequence(tmp_path / "test" / "seq_00000.h5")
+    assert size == (1280, 720) and (start, end) == (0, 20_000) and inp.size > gt.size > 0
+    result = benchmark(tmp_path / "test", {"raw": "raw", "pfd-a": "pfd-a"}, progress=False)
+    for row in ("raw", "pfd-a"):
+        summary = result.evaluation.methods[row]
+        assert summary.n_segments == 1 and all(np.isfinite(v) for v in summary.means.values())
+    assert result.speed["raw"].windows == 1

@@ -40,6 +40,7 @@ from torch.nn.parallel import DistributedDataParallel
 
 from ._progress import progress_bar
 from ._registry import Registry
+from .data.folders import sequence_files
 from .data.pairs import PairedWindows
 from .errors import EdeflareError
 from .io._atomic import atomic_path
@@ -384,6 +385,12 @@ def train(
 ) -> Path:
     """Train (or resume) a model; return the path of the final ``model.safetensors``.
 
+    ``train_paths`` and ``val_paths`` hold sequence files or folders: a dataset
+    folder stands for its ``train/`` files in ``train_paths`` and its ``test/``
+    files in ``val_paths``, a mix folder (``eflare-mix``) for its parts' in the
+    mix's order, any other folder for the files in it
+    (:func:`edeflare.data.folders.sequence_files`).
+
     ``out_dir`` receives ``config.json``, ``checkpoint.pt`` (latest, atomic),
     ``train_log.csv``, ``val_log.csv``, ``best.safetensors`` (lowest
     validation MSE) and ``model.safetensors`` (last iteration). If
@@ -399,6 +406,8 @@ def train(
         raise EdeflareError(f"keep_cells must be 'bin' or 'window', got {config.keep_cells!r}")
     if config.loss == "keep" and not isinstance(create_model(config.preset), FlareMaskNet):
         raise EdeflareError(f"loss 'keep' trains mask presets (mask.*), not {config.preset!r}")
+    train_paths = sequence_files(train_paths, "train")
+    val_paths = sequence_files(val_paths, "test") if val_paths else val_paths
     env = _dist_env()
     device = _device(config, env)
     out = Path(out_dir)

@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import json
+
 import h5py
+import numpy as np
 import pytest
 
+from edeflare.cli import main
 from edeflare.data.dsec_flare import DsecFlareConfig
 from edeflare.data.eflare import FlareConfig
 from edeflare.data.generate import generate_dataset
-from edeflare.data.recipe import RECIPES, Recipe
+from edeflare.data.recipe import RECIPES, Mix, Recipe
 from edeflare.errors import ParameterError
+from edeflare.sim.background import NightStreet
 from edeflare.sim.optics_scene import OpticsSceneConfig
 from edeflare.sim.script import ScriptConfig
 
@@ -28,7 +33,23 @@ DIGESTS_SINCE = {
     "eflare-night": "3da4706a3e07b77dc7b655b4237a6c2e85f4208724c3d7197f126a0195c8b142",
     "eflare-night-sparse": "beff5735ac634792174a6b828af05bd7315012a4c5a2bd81cec4e5e47d155c6d",
     "eflare-day-street": "2c842cc3ea4f7f6285b9b623a46e2b2ddd62aebcf3b34818800d330665d937e0",
+    "eflare-forward": "12bdd521da6bdd18d057d68b465c45750b08c7342970ad148e2ef8409fd9624c",
+    "eflare-forward-hd": "d0e9e2c5ae9c5b389b677bd6c9690f9c8f2084189ab9a0af706da5c886df41d9",
 }
+# eflare-mix: its parts' recipes and the mix's own digest (over the parts' names and digests).
+MIX_DIGEST = "c3b75faf4b0352936221fa5fefb1219bcdaa5dac45c1c00d50e3f20dca8c6836"
+MIX_PARTS = {  # part: (recipe digest, sequences, test sequences, sensor size, seed)
+    "night-346": ("9d76b0027eacc433e8859c3fc0ddfd8e3aa633cf234ef25ecffa8a48ccb0db7c",
+                  60, 6, (346, 260), 201),
+    "day-346": ("54a1376afa3a60dedb099b2daec34a80d9b30fbbf46388e7d4c9d630260946de",
+                20, 2, (346, 260), 202),
+    "dense-640": ("292f6dc73723c09572b15a85848565513ff2b85b5271ec338125da29e53ac004",
+                  28, 3, (640, 480), 203),
+    "dense-1280": ("07e94a551d39a0c3a2698c537f5526f525be0590e0c61c6964da5478e35129b0",
+                   10, 1, (1280, 720), 204),
+    "sparse-1280": ("32ed420157ac0ea3592e0f6b986432e6644e736e2f7ee8561396170cc62152a3",
+                    10, 1, (1280, 720), 205),
+}  # fmt: skip
 # The recipe the `night` model's day data was first generated with, under the name
 # "eflare-day-mix": eflare-day-street is that recipe, renamed. The name is stored in the
 # files (their recipe and recipe_sha256 attributes), never drawn from: the events are
@@ -141,3 +162,94 @@ def test_the_day_street_generates(tmp_path):
         assert f.attrs["recipe"] == "eflare-day-street"
         assert f.attrs["recipe_sha256"] == tiny.sha256()
         assert {"input", "gt", "gt_full"} <= set(f)  # keep-only targets of the sparse sensing
+
+
+# ------------------------------------------------------------------- eflare-mix and forward
+
+
+def test_the_mix_has_its_parts_in_order_with_their_digests():
+    mix = RECIPES["eflare-mix"]
+    assert isinstance(mix, Mix) and mix.sha256() == MIX_DIGEST
+    assert mix.part_names == tuple(MIX_PARTS) and mix.sequences == 128
+    for part, (digest, n, n_test, size, seed) in MIX_PARTS.items():
+        r = mix.part(part)
+        assert (r.sha256(), r.sequences, r.test_sequences, r.sensor_size, r.seed) == (
+            digest,
+            n,
+            n_test,
+            size,
+            seed,
+        ), part
+        assert r.name == f"eflare-mix.{part}" and r.kind == "flare"
+        assert Recipe.from_dict(r.to_dict()) == r
+    seeds = [r.seed for _, r in mix.parts]
+    others = {r.seed for name, r in RECIPES.items() if isinstance(r, Recipe)}
+    assert len(set(seeds)) == len(seeds) and not set(seeds) & others
+
+
+def test_the_mix_parts_are_the_recipes_they_name():
+    mix, night, day = RECIPES["eflare-mix"], RECIPES["eflare-night"], RECIPES["eflare-day-street"]
+    # night-346 and day-346 are eflare-night and eflare-day-street, other counts and seeds
+    for part, recipe in (("night-346", night), ("day-346", day)):
+        r = mix.part(part)
+        same = {"sequences": recipe.sequences, "test_sequences": recipe.test_sequences}
+        assert r.replace(name=recipe.name, seed=recipe.seed, **same) == recipe
+    dense, dense_hd = mix.part("dense-640"), mix.part("dense-1280")
+    for r in (dense, dense_hd):
+        assert r.config.variant == "forward" and not r.config.components
+        assert not r.config.sensing.enabled and r.background == "synthetic"
+    assert dense.scene == night.scene
+    assert dense.config.script == RECIPES["eflare-forward"].config.script
+    assert dense_hd.config.script == RECIPES["eflare-forward-hd"].config.script
+    # at 1280x720 the pixel ranges are x1.5 and the flare template is larger
+    s, hd = dense.config.script, dense_hd.config.script
+    assert hd.light_radius_px == (3.0, 15.0) and hd.ghost_radius_px == (6.0, 75.0)
+    assert hd.travel_px == (0.0, 270.0) and (s.psf_grid, hd.psf_grid) == (512, 576)
+    assert dense_hd.scene.pan_px_per_s == (3.0, 375.0)
+    sparse = mix.part("sparse-1280")
+    assert sparse.config.sensing == night.config.sensing and sparse.config.variant == "physical"
+    assert sparse.config.script.light_radius_px == (4.5, 42.0)
+    assert sparse.config.script.exposure == night.config.script.exposure
+
+
+def test_dense_sources_are_10_to_the_1_5_to_10_to_the_5_times_the_street():
+    """The mapping in recipe.py: S = exposure * peak / B with B the night street's median."""
+    script = RECIPES["eflare-forward"].config.script
+    assert script.exposure == (2.5, 8000.0)
+    assert (script.star_probability, script.blade_probability) == (0.7, 0.6)
+    assert (script.glare_probability, script.ghost_probability) == (0.8, 0.95)
+    medians = [
+        float(np.median(NightStreet((640, 480), RECIPES["eflare-forward"].scene, rng=s).frame(0)))
+        for s in range(8)
+    ]
+    level = float(np.median(medians))
+    assert 13.0 < level < 21.0
+    peak = sum(script.peak) / 2
+    low, high = (np.log10(e * peak / level) for e in script.exposure)
+    assert abs(low - 1.5) < 0.15 and abs(high - 5.0) < 0.15
+
+
+def test_the_forward_test_sets_are_all_test_and_never_trained_on(tmp_path):
+    training = {name: r for name, r in RECIPES.items() if isinstance(r, Recipe)}
+    training |= {f"eflare-mix/{p}": r for p, r in RECIPES["eflare-mix"].parts}
+    sets = (("eflare-forward", (640, 480), 12), ("eflare-forward-hd", (1280, 720), 4))
+    for name, size, n in sets:
+        r = training.pop(name)
+        assert (r.kind, r.config.variant, r.sensor_size) == ("flare", "forward", size)
+        assert r.sequences == r.test_sequences == n
+        assert {r.split_of(i) for i in range(n)} == {"test"}
+        assert r.scene.lamps == RECIPES["eflare-night"].scene.lamps  # a night street
+    test_sets = {RECIPES["eflare-forward"], RECIPES["eflare-forward-hd"]}
+    for name, r in training.items():
+        assert r.seed not in {t.seed for t in test_sets}, name
+    assert not test_sets & {r for _, r in RECIPES["eflare-mix"].parts}
+    # with ground truth: a small eflare-forward writes input and gt, all in test/ (also
+    # when the command line asks for fewer sequences)
+    argv = ["simulate", str(tmp_path), "--recipe", "eflare-forward", "--sequences", "2"]
+    assert main([*argv, "--sensor-size", "48x36", "--duration-ms", "20", "--no-progress"]) == 0
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert [f["file"] for f in manifest["files"]] == ["test/seq_00000.h5", "test/seq_00001.h5"]
+    assert manifest["recipe"]["test_sequences"] == 2 and not (tmp_path / "train").exists()
+    with h5py.File(tmp_path / "test" / "seq_00000.h5") as f:
+        assert f.attrs["variant"] == "forward" and f.attrs["recipe"] == "eflare-forward"
+        assert {"input", "gt", "flare", "light", "background"} <= set(f)

@@ -1,7 +1,9 @@
 """``edeflare simulate OUT``: generate a paired dataset (parallel, sharded, resumable).
 
 Also the test sets ``eflare-r-sim`` / ``eflare-r-sim-mini`` (the paper's real-capture
-model, simulated) and ``dsec-flare`` (windows of a local DSEC copy, ``--dsec-root``).
+model, simulated), ``eflare-forward`` / ``eflare-forward-hd`` (the full forward model)
+and ``dsec-flare`` (windows of a local DSEC copy, ``--dsec-root``), and mixes
+(``eflare-mix``: each part a dataset of its own in ``OUT/<part>/``).
 """
 
 from __future__ import annotations
@@ -27,7 +29,11 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "a star or random-pattern filter and the clean lens, one sensor draw per pair; "
         "dsec-flare cuts the paper's DSEC-Flare windows from your DSEC copy "
         "(--dsec-root; nothing is downloaded) into files with an input group only "
-        "(no ground truth: for edeflare deflare / view, not for benchmark).",
+        "(no ground truth: for edeflare deflare / view, not for benchmark); eflare-forward(-hd) "
+        "simulates dense flare and its flare-free twin through the full forward model. A mix "
+        "(eflare-mix) writes each part as a dataset of its own in OUT/<part>/ and "
+        "OUT/manifest.json listing them; edeflare train OUT trains on every part; --shard "
+        "splits the sequences of all parts.",
         **kwargs,
     )
     p.add_argument("out", type=Path, help="dataset folder")
@@ -38,11 +44,21 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "eflare-night (180 at 346x260, calibrated on real night recordings), eflare-night-sparse "
         "(the same with sparse backgrounds and ghosts sensed at their own rate), "
         "eflare-day-street (72 at 346x260: eflare-night's lights and flare over a street lit as "
-        "by day); test sets: "
+        "by day); eflare-mix (a mix: 128 sequences in five parts, each its own dataset in "
+        "OUT/<part>/: night-346 and day-346 (eflare-night, eflare-day-street), dense-640 and "
+        "dense-1280 (dense flare of strong sources through the full forward model at 640x480 "
+        "and 1280x720), sparse-1280 (eflare-night at 1280x720); 11-15 minutes with "
+        "--workers 2 on 2 cores); test sets: "
         "eflare-r-sim (30 at 640x480), eflare-r-sim-mini (20 at 346x260), "
+        "eflare-forward (12 at 640x480) and eflare-forward-hd (4 at 1280x720: dense flare "
+        "through the full forward model, with ground truth), "
         "dsec-flare (15 DSEC windows of 100 ms at 640x480, needs --dsec-root)",
     )
-    p.add_argument("--sequences", type=int, help="number of sequences")
+    p.add_argument(
+        "--sequences",
+        type=int,
+        help="number of sequences (a test set's stay all in test unless --test-sequences)",
+    )
     p.add_argument("--test-sequences", type=int, help="sequences in the test split (the last ones)")
     p.add_argument("--duration-ms", type=float, help="length of a sequence (ms)")
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help="sensor size")
@@ -99,11 +115,13 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build the recipe from the options, generate, print a summary."""
     from ..data.dsec_flare import parse_window
-    from ..data.generate import RECIPES, generate_dataset
+    from ..data.generate import RECIPES, Mix, generate_dataset
     from ..data.kinds import get_kind
     from ..errors import ParameterError
 
     base = RECIPES[args.recipe]  # an unknown name is an error listing the valid ones
+    if isinstance(base, Mix):
+        return _run_mix(base, args)
     kind = get_kind(base.kind)
     given = {  # the kind-specific options (data.kinds.KIND_OPTIONS) given
         "--test-sequences": args.test_sequences is not None,
@@ -127,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
     for key in ("sequences", "test_sequences", "sensor_size", "variant", "weights", "seed"):
         if getattr(args, key) is not None:
             changes[key] = getattr(args, key)
+    if "sequences" in changes and "test_sequences" not in changes:
+        if base.test_sequences == base.sequences:  # a test set stays all test
+            changes["test_sequences"] = changes["sequences"]
     if args.duration_ms is not None:
         changes["duration_us"] = round(args.duration_ms * 1000)
     if args.background:
@@ -152,5 +173,51 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"{recipe.name}: {report.generated} sequences made, {report.skipped} already there "
         f"({report.wall_seconds:.1f} s); dataset {state}; manifest {report.manifest_path}"
+    )
+    return 0
+
+
+_RECIPE_OPTIONS = {
+    "sequences": "--sequences",
+    "test_sequences": "--test-sequences",
+    "duration_ms": "--duration-ms",
+    "sensor_size": "--sensor-size",
+    "background": "--background",
+    "variant": "--variant",
+    "weights": "--weights",
+    "seed": "--seed",
+    "flare7k": "--flare7k",
+    "no_components": "--no-components",
+    "dsec_root": "--dsec-root",
+    "dsec_window": "--dsec-window",
+    "rectify": "--rectify",
+}
+
+
+def _run_mix(mix: object, args: argparse.Namespace) -> int:
+    """Generate a mix: its parts' recipes as they are (only --workers and --shard apply)."""
+    from ..data.generate import generate_dataset
+    from ..errors import ParameterError
+
+    given = [
+        flag
+        for key, flag in _RECIPE_OPTIONS.items()
+        if getattr(args, key) is not None and getattr(args, key) is not False
+    ]
+    if given:
+        raise ParameterError(
+            f"option(s) {', '.join(given)} do not apply to the mix {args.recipe} (its parts are "
+            "recipes of their own; simulate one with its own --recipe to change it)"
+        )
+    report = generate_dataset(
+        mix, args.out, workers=args.workers, shard=args.shard, progress=not args.no_progress
+    )
+    m = report.manifest
+    state = "complete" if m["complete"] else f"{m['done']}/{m['sequences']} sequences so far"
+    parts = ", ".join(p["folder"] for p in m["parts"])
+    print(
+        f"{m['name']}: {report.generated} sequences made, {report.skipped} already there "
+        f"({report.wall_seconds:.1f} s); mix {state} (parts {parts}); manifest "
+        f"{report.manifest_path}"
     )
     return 0

@@ -7,7 +7,6 @@ import dataclasses
 import os
 import shlex
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 HELP = (
@@ -49,9 +48,10 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "data",
         type=Path,
         nargs="+",
-        help="dataset folder(s) with train/ (and test/) *.h5 sequences; with several, the "
-        "training windows are those of every folder's train/ in the order given (each "
-        "folder's files sorted by name), and the validation windows those of their test/",
+        help="dataset folder(s) with train/ (and test/) *.h5 sequences, or mix folders "
+        "(--recipe eflare-mix: each stands for its parts' folders, in the mix's order); with "
+        "several, the training windows are those of every folder's train/ in the order given "
+        "(each folder's files sorted by name), and the validation windows those of their test/",
     )
     p.add_argument(
         "--out", type=Path, required=True, help="run folder (resumed if it has a checkpoint)"
@@ -156,6 +156,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the configuration, then train."""
+    from ..data.folders import dataset_files
     from ..train import TRAIN_PRESETS, train
 
     base = TRAIN_PRESETS[args.config]
@@ -181,44 +182,3 @@ def run(args: argparse.Namespace) -> int:
         of = "" if done == config.iterations else f" of {config.iterations} (time limit)"
         print(f"trained {config.preset} for {done}{of} iterations: {final}")
     return 0
-
-
-def dataset_files(folders: Sequence[Path]) -> tuple[list[Path], list[Path]]:
-    """The training and validation files of one or several dataset folders.
-
-    Each folder's ``train/`` files (sorted by name), the folders in the order
-    given; likewise their ``test/`` files, for the folders that have one. The
-    order fixes which window each sample index is, so two folders given as
-    ``DAY NIGHT`` train exactly as one folder holding ``day_*.h5`` and
-    ``night_*.h5`` links to their files did.
-
-    Parameters
-    ----------
-    folders : sequence of Path
-        Dataset folders (``edeflare simulate`` output), at least one.
-
-    Returns
-    -------
-    train_paths, val_paths : list of Path
-        ``val_paths`` is empty when no folder has a ``test/``.
-
-    Examples
-    --------
-    >>> import tempfile
-    >>> root = Path(tempfile.mkdtemp())
-    >>> for name in ("b/train/seq_1.h5", "b/train/seq_0.h5", "a/train/seq_0.h5", "a/test/seq_2.h5"):
-    ...     (root / name).parent.mkdir(parents=True, exist_ok=True)
-    ...     (root / name).touch()
-    >>> train, val = dataset_files([root / "b", root / "a"])
-    >>> [p.relative_to(root).as_posix() for p in train], [p.name for p in val]
-    (['b/train/seq_0.h5', 'b/train/seq_1.h5', 'a/train/seq_0.h5'], ['seq_2.h5'])
-    """
-    from ..io.sequence import list_sequences
-
-    train_paths: list[Path] = []
-    val_paths: list[Path] = []
-    for folder in folders:
-        train_paths += list_sequences(folder / "train")
-        if (folder / "test").is_dir():
-            val_paths += list_sequences(folder / "test")
-    return train_paths, val_paths

@@ -14,6 +14,10 @@ under its own key together with the flare kind's defaults. So every dataset
 made before the split keeps its digest and resumes (``tests/data/test_recipe.py``
 pins them). :meth:`Recipe.from_dict` reads that layout; :meth:`Recipe.replace`
 takes the same flat keys.
+
+A :class:`Mix` is a recipe whose parts are recipes (``eflare-mix``): each part is
+generated as a dataset of its own in a folder named after it, and training reads
+the mix's folder as its parts'.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,6 +51,7 @@ __all__ = [
     "WEIGHTS",
     "FlareConfig",
     "GenerationError",
+    "Mix",
     "Recipe",
     "list_recipes",
     "make_background_source",
@@ -323,6 +329,133 @@ def _asdict(value: Any) -> Any:
     return dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
 
 
+_PART_NAME = re.compile(r"^[a-z0-9][a-z0-9._-]*$")
+_RESERVED_PARTS = ("train", "test")
+
+
+@dataclass(frozen=True)
+class Mix:
+    """A dataset of datasets: named parts, each an ordinary :class:`Recipe`.
+
+    :func:`~edeflare.data.generate.generate_dataset` builds part ``p`` into
+    ``OUT/<p>/`` as a dataset of its own (its ``train/``, ``test/`` and
+    ``manifest.json``) and writes ``OUT/manifest.json``, which lists the
+    parts, their recipes' digests and their manifests' digests. Training
+    reads a mix folder as its parts' folders in the mix's order
+    (:func:`edeflare.data.folders.dataset_folders`).
+
+    The mix's order is every part's sequences in turn: sequence ``i`` of the
+    ``k``-th part is item ``offset_k + i``, where ``offset_k`` counts the
+    sequences of the parts before it; ``shard="i/n"`` makes the items whose
+    position has ``position % n == i``.
+
+    Parameters
+    ----------
+    name : str
+    parts : tuple of (str, Recipe)
+        Part names (folder names: lower-case letters, digits, ``.``, ``_``,
+        ``-``; not ``train`` or ``test``) and their recipes, in order.
+
+    Examples
+    --------
+    >>> m = Mix("pair", (("a", Recipe(sequences=3, test_sequences=1)),
+    ...                  ("b", Recipe(sequences=2, test_sequences=1, seed=1))))
+    >>> m.sequences, m.part_names, m.shard_of("b", (1, 2))
+    (5, ('a', 'b'), (0, 2))
+    >>> m.replace(sequences=2).sequences
+    4
+    >>> Mix("x", (("a", Recipe()), ("a", Recipe(seed=1))))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: mix 'x': part names must be unique, got ['a', 'a']
+    """
+
+    name: str
+    parts: tuple[tuple[str, Recipe], ...]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ParameterError(f"mix name must be a non-empty string, got {self.name!r}")
+        try:
+            parts = tuple((str(n), r) for n, r in self.parts)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"mix {self.name!r}: parts must be (name, Recipe) pairs, got {self.parts!r}"
+            ) from None
+        if not parts:
+            raise ParameterError(f"mix {self.name!r} needs at least one part")
+        names = [n for n, _ in parts]
+        if len(set(names)) != len(names):
+            raise ParameterError(f"mix {self.name!r}: part names must be unique, got {names}")
+        for part, recipe in parts:
+            if not _PART_NAME.match(part) or part in _RESERVED_PARTS:
+                raise ParameterError(
+                    f"mix {self.name!r}: part name {part!r} must be a folder name of lower-case "
+                    f"letters, digits, '.', '_' and '-', not one of {_RESERVED_PARTS}"
+                )
+            if not isinstance(recipe, Recipe):
+                raise ParameterError(
+                    f"mix {self.name!r}: part {part!r} must be a Recipe, got "
+                    f"{type(recipe).__name__}"
+                )
+        object.__setattr__(self, "parts", parts)
+
+    @property
+    def part_names(self) -> tuple[str, ...]:
+        """The parts' names, in the mix's order."""
+        return tuple(n for n, _ in self.parts)
+
+    @property
+    def sequences(self) -> int:
+        """Sequences of every part together."""
+        return sum(r.sequences for _, r in self.parts)
+
+    def part(self, name: str) -> Recipe:
+        """The recipe of part ``name`` (an unknown name lists the parts)."""
+        for part, recipe in self.parts:
+            if part == name:
+                return recipe
+        raise ParameterError(
+            f"mix {self.name!r} has no part {name!r}; parts: {', '.join(self.part_names)}"
+        )
+
+    def offset(self, name: str) -> int:
+        """Position of part ``name``'s first sequence in the mix's order."""
+        self.part(name)
+        total = 0
+        for part, recipe in self.parts:
+            if part == name:
+                return total
+            total += recipe.sequences
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    def shard_of(self, name: str, shard: tuple[int, int]) -> tuple[int, int]:
+        """Part ``name``'s own shard ``(j, n)`` for the mix's shard ``(i, n)``: its
+        sequences ``k`` with ``(offset + k) % n == i`` are those with ``k % n == j``."""
+        i, n = shard
+        return (i - self.offset(name)) % n, n
+
+    def replace(self, **changes: Any) -> Mix:
+        """A copy with ``changes`` made to every part (:meth:`Recipe.replace`'s keys).
+
+        ``name=`` renames the mix instead (its parts keep their recipes' names).
+        """
+        name = changes.pop("name", self.name)
+        return Mix(name, tuple((p, r.replace(**changes) if changes else r) for p, r in self.parts))
+
+    def identity(self) -> dict[str, Any]:
+        """The mix's name and, per part, its name and its recipe's digest."""
+        return {
+            "name": self.name,
+            "parts": [{"name": p, "recipe_sha256": r.sha256()} for p, r in self.parts],
+        }
+
+    def sha256(self) -> str:
+        """A digest of :meth:`identity`: a mix's manifest records it."""
+        text = json.dumps(self.identity(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
 # A slowly moving camera for the optics test sets (E-Flare-R's camera stands still; a
 # little motion gives the background events to keep).
 _SLOW_STREET = SceneConfig(pan_px_per_s=(10.0, 120.0), zoom_per_s=(0.0, 0.3), shake_px=(0.0, 1.0))
@@ -391,7 +524,122 @@ _DAY_SCENE = SceneConfig(
     lamps=(0, 2),
 )
 
-RECIPES: Registry[Recipe] = Registry("recipe")
+# Dense flare: strong sources (headlights, near street lamps) through the full forward model
+# (variant "forward": I_bg + I_f through one simulated sensor, Eq. 5-6), for eflare-mix's
+# dense parts and the eflare-forward test sets. What `exposure` means against the background:
+# the light's radiance is R = exposure * peak on the 8-bit scale (sim/render.py), peak ~
+# U(180, 255) (mean 217); its flare is R * (disc * PSF) + glare, clipped at peak, added to
+# the background frame. The night street (_NIGHT_SCENE) has a median level B of about 17
+# (medians of 20 draws at 640x480: quartiles 13-20). So a source is S = R / B ~ 12.8 *
+# exposure times the background, and exposure log-uniform in (2.5, 8000) spans S from about
+# 10^1.5 to 10^5 (within a factor of 2 either way, from peak and B). A pixel fires where the
+# flare adds about a fifth of B (log contrast ~0.2), i.e. where disc * PSF > 0.2 / S: at
+# S = 10^5 the diffraction spikes, blade streaks and scattered halo fill hundreds of pixels,
+# saturated near the source. Glare and ghost levels are absolute (8-bit scale), raised over
+# the paper's so that they stand out of a lit street; star filters (spikes), polygonal
+# apertures (blade streaks), ghosts and glare are common. The PSF grid (512) bounds the
+# flare template: full strength to about 215-240 px from the source, gone by 265-300 px.
+_DENSE_SCRIPT = ScriptConfig(
+    exposure=(2.5, 8000.0),
+    light_radius_px=(2.0, 10.0),
+    star_probability=0.7,
+    blade_probability=0.6,
+    glare_probability=0.8,
+    glare_level=(5.0, 120.0),
+    ghost_probability=0.95,
+    ghost_level=(2.0, 40.0),
+)
+# The same at 1280x720: pixel ranges x1.5 (the height's ratio; lights, travel, ghosts, the
+# camera's pan and shake) and a PSF grid of 576, whose template keeps full strength to about
+# 240-280 px from the source (halo, spikes and glare reach ~250 px) and is gone by 300-350 px.
+_HD = 1.5
+_DENSE_HD_SCRIPT = dataclasses.replace(
+    _DENSE_SCRIPT,
+    light_radius_px=(2.0 * _HD, 10.0 * _HD),
+    travel_px=(0.0, 180.0 * _HD),
+    ghost_radius_px=(4.0 * _HD, 50.0 * _HD),
+    psf_grid=576,
+)
+_NIGHT_SCENE_HD = dataclasses.replace(
+    _NIGHT_SCENE, pan_px_per_s=(2.0 * _HD, 250.0 * _HD), shake_px=(0.0, 1.5 * _HD)
+)
+# eflare-night's lights and sensing at 1280x720 (sparse scattered flare of weak or distant
+# sources), its pixel ranges x1.5.
+_NIGHT_HD_SCRIPT = dataclasses.replace(
+    _NIGHT_SCRIPT,
+    light_radius_px=(3.0 * _HD, 28.0 * _HD),
+    travel_px=(0.0, 260.0 * _HD),
+    ghost_radius_px=(4.0 * _HD, 50.0 * _HD),
+)
+_FORWARD = FlareConfig(variant="forward", script=_DENSE_SCRIPT)
+_FORWARD_HD = FlareConfig(variant="forward", script=_DENSE_HD_SCRIPT)
+
+# eflare-mix: dense and sparse flare over night and day streets at three sensor sizes, for a
+# de-flarer that must handle both. One-sequence times, one at a time on one core of a 2-core
+# machine (100 ms sequences, simulated and written): night-346 about 4 s, day-346 4.5 s,
+# dense-640 14 s, dense-1280 35 s, sparse-1280 23 s. The counts below sum to about 1,300
+# core-seconds: about 11 minutes with --workers 2 on two idle cores, about 15 allowing for
+# the workers slowing each other down (and a busy machine takes longer). Every part has test
+# sequences (validation) and its own seed; the forward parts and sparse-1280 store input and
+# gt only (no components), to keep the 1280x720 files small (about 1.5 GB in all, estimated
+# from the files written while timing).
+_MIX_PARTS = (
+    (
+        "night-346",
+        dataclasses.replace(
+            _NIGHT_RECIPE, name="eflare-mix.night-346", sequences=60, test_sequences=6, seed=201
+        ),
+    ),
+    (
+        "day-346",
+        dataclasses.replace(
+            _NIGHT_RECIPE,
+            name="eflare-mix.day-346",
+            sequences=20,
+            test_sequences=2,
+            scene=_DAY_SCENE,
+            seed=202,
+        ),
+    ),
+    (
+        "dense-640",
+        Recipe(
+            name="eflare-mix.dense-640",
+            sequences=28,
+            test_sequences=3,
+            sensor_size=(640, 480),
+            seed=203,
+            scene=_NIGHT_SCENE,
+            config=dataclasses.replace(_FORWARD, components=False),
+        ),
+    ),
+    (
+        "dense-1280",
+        Recipe(
+            name="eflare-mix.dense-1280",
+            sequences=10,
+            test_sequences=1,
+            sensor_size=(1280, 720),
+            seed=204,
+            scene=_NIGHT_SCENE_HD,
+            config=dataclasses.replace(_FORWARD_HD, components=False),
+        ),
+    ),
+    (
+        "sparse-1280",
+        Recipe(
+            name="eflare-mix.sparse-1280",
+            sequences=10,
+            test_sequences=1,
+            sensor_size=(1280, 720),
+            seed=205,
+            scene=_NIGHT_SCENE_HD,
+            config=FlareConfig(script=_NIGHT_HD_SCRIPT, sensing=_NIGHT_SENSING, components=False),
+        ),
+    ),
+)
+
+RECIPES: Registry[Recipe | Mix] = Registry("recipe")
 for _recipe in (
     Recipe(name="eflare-2.7k"),
     Recipe(name="eflare-mini", sequences=120, test_sequences=12, sensor_size=(346, 260)),
@@ -421,6 +669,27 @@ for _recipe in (
         scene=_DAY_SCENE,
         seed=101,
     ),
+    # Test sets of the full forward model (every sequence in test/, seeds no training
+    # recipe uses): dense flare over night streets, with ground truth.
+    Recipe(
+        name="eflare-forward",
+        sequences=12,
+        test_sequences=12,
+        sensor_size=(640, 480),
+        seed=301,
+        scene=_NIGHT_SCENE,
+        config=_FORWARD,
+    ),
+    Recipe(
+        name="eflare-forward-hd",
+        sequences=4,
+        test_sequences=4,
+        sensor_size=(1280, 720),
+        seed=302,
+        scene=_NIGHT_SCENE_HD,
+        config=_FORWARD_HD,
+    ),
+    Mix("eflare-mix", _MIX_PARTS),
 ):
     RECIPES.register(_recipe.name, _recipe)
 """Named recipes: the paper's E-Flare-2.7K (synthetic backgrounds unless files are given),
@@ -437,16 +706,25 @@ target; ``eflare-night-sparse`` (180 of 100 ms at 346x260), the same with sparse
 backgrounds and ghosts sensed at their own rate; and ``eflare-day-street`` (72 of 100 ms at
 346x260, 6 of them test, dataset seed 101), eflare-night's lights, flare and sensing over a
 street lit as by day (12-43 events per pixel and second to keep), the day half of the
-``night`` model's training data."""
+``night`` model's training data; the test sets of the full forward model, ``eflare-forward``
+(12 of 100 ms at 640x480) and ``eflare-forward-hd`` (4 at 1280x720): dense flare (star
+filters, aperture blades, glare, ghosts; sources 10^1.5-10^5 times the street) over night
+streets, all test; and the :class:`Mix` ``eflare-mix``, training data for dense and sparse
+flare in five parts: ``night-346`` (eflare-night, 60), ``day-346`` (eflare-day-street, 20),
+``dense-640`` (the forward model's dense flare, 28 at 640x480), ``dense-1280`` (the same at
+1280x720, 10) and ``sparse-1280`` (eflare-night at 1280x720, 10), each with test
+sequences and its own seed: about 1,300 core-seconds, 11-15 minutes with ``--workers 2``
+on 2 cores (the one-sequence times are in the comment above ``_MIX_PARTS``)."""
 
 
 def list_recipes() -> list[str]:
-    """Names of :data:`RECIPES`.
+    """Names of :data:`RECIPES` (recipes and mixes).
 
     Examples
     --------
     >>> list_recipes()  # doctest: +NORMALIZE_WHITESPACE
-    ['dsec-flare', 'eflare-2.7k', 'eflare-day-street', 'eflare-mini', 'eflare-night',
-     'eflare-night-sparse', 'eflare-r-sim', 'eflare-r-sim-mini']
+    ['dsec-flare', 'eflare-2.7k', 'eflare-day-street', 'eflare-forward', 'eflare-forward-hd',
+     'eflare-mini', 'eflare-mix', 'eflare-night', 'eflare-night-sparse', 'eflare-r-sim',
+     'eflare-r-sim-mini']
     """
     return RECIPES.names()

@@ -1,0 +1,51 @@
+"""benchmarks/flare_targets.py: the eflare-forward target's code path on a small forward set."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from edeflare.data.generate import RECIPES, generate_dataset
+from edeflare.eval.metrics import METRICS
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture
+def flare_targets(monkeypatch):
+    monkeypatch.syspath_prepend(str(BENCHMARKS))  # its `_common`
+    spec = importlib.util.spec_from_file_location("flare_targets", BENCHMARKS / "flare_targets.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_eflare_forward_target_scores_every_method(flare_targets, tmp_path):
+    pytest.importorskip("dv_processing")  # the dv-processing baselines
+    small = RECIPES["eflare-forward"].replace(
+        sequences=2, test_sequences=2, sensor_size=(64, 48), duration_us=40_000
+    )
+    generate_dataset(small, tmp_path / "eflare-forward", progress=False)
+    rows, verdicts = flare_targets.forward_set(argparse.Namespace(data=tmp_path, model=None))
+    means = {r.pop("method"): r for r in rows}
+    assert list(means) == ["raw", *flare_targets.BASELINES, "model", "keep-only oracle"]
+    wins, chamfer = verdicts
+    assert wins["requirement"] == ">= 7 of 8" and chamfer["requirement"] == "<= 0.60"
+    beaten = [
+        m
+        for m in METRICS
+        if all(
+            flare_targets._better(m, means["model"][m], v[m])
+            for row, v in means.items()
+            if row not in ("model", "keep-only oracle")
+        )
+    ]
+    assert wins["measured"] == len(beaten) and (wins["met"] == "yes") == (len(beaten) >= 7)
+    assert all(m in wins["note"] for m in METRICS if m not in beaten)
+    ratio = means["model"]["chamfer"] / means["raw"]["chamfer"]
+    assert chamfer["measured"] == round(ratio, 4) and (chamfer["met"] == "yes") == (ratio <= 0.6)
+    oracle = means["keep-only oracle"]["chamfer"] / means["raw"]["chamfer"]
+    assert chamfer["note"] == f"keep-only oracle {oracle:.3f}" and oracle < 1.0
