@@ -260,7 +260,8 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
         batch_size=256,
         per_window=500,
     )
-    summary = train_head([tmp_path / "mix"], base, tmp_path / "run", config, progress=False)
+    parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
+    summary = train_head(parts, base, tmp_path / "run", config, progress=False)
     assert summary["chosen_on"] == "the datasets' test splits: a, b"
     cached = sorted(p.name for p in (tmp_path / "run").glob("features-*.npz"))
     assert len(cached) == 2
@@ -279,6 +280,6 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
     assert left.sum() < 0.1 * (inp["x"] < size[0] // 2).sum()  # flare removed
     assert (~left).sum() > 0.9 * gt.size  # scene kept
     # a rerun reads the cached features (same names), and fits the same head
-    again = train_head([tmp_path / "mix"], base, tmp_path / "run", config, progress=False)
+    again = train_head(parts, base, tmp_path / "run", config, progress=False)
     assert again["keep_threshold"] == summary["keep_threshold"]
     assert sorted(p.name for p in (tmp_path / "run").glob("features-*.npz")) == cached

@@ -48,6 +48,7 @@ import numpy as np
 import torch
 
 from .._progress import progress_bar
+from ..data.folders import dataset_folders
 from ..errors import EdeflareError
 from ..events import SensorSize
 from ..io._atomic import atomic_path
@@ -61,7 +62,6 @@ __all__ = [
     "HeadTrainingConfig",
     "choose_threshold",
     "collect_features",
-    "dataset_folders",
     "fit_head",
     "keep_labels",
     "train_head",
@@ -109,23 +109,6 @@ def keep_labels(inp: np.ndarray, gt: np.ndarray, tolerance_us: int = 1_000) -> n
 
 
 # ----------------------------------------------------------------------------- data
-
-
-def dataset_folders(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
-    """The dataset folders (each with ``train/`` or ``test/``) of ``paths``: a dataset
-    itself, or a folder of datasets (a mixture's parts), in name order."""
-    out: list[Path] = []
-    for path in map(Path, paths):
-        if (path / "train").is_dir() or (path / "test").is_dir():
-            out.append(path)
-            continue
-        parts = sorted(p for p in path.iterdir() if (p / "train").is_dir()) if path.is_dir() else []
-        if not parts:
-            raise EdeflareError(
-                f"{path}: not a dataset (no train/ or test/ folder) nor a folder of them"
-            )
-        out += parts
-    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -326,7 +309,7 @@ def train_head(
     config = config or HeadTrainingConfig()
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
-    folders = dataset_folders(data)
+    folders = [part for d in data for part in dataset_folders(d)]
     base = Path(base_weights)
     net, card = load_model(base)
     if getattr(net, "head", None) is not None:
