@@ -40,7 +40,8 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "data",
         type=Path,
         nargs="+",
-        help="dataset folders (with train/ and test/) or mix folders (edeflare simulate --recipe eflare-mix)",
+        help="dataset folders (with train/ and test/) or mix folders "
+        "(edeflare simulate --recipe eflare-mix)",
     )
     p.add_argument("--out", type=Path, required=True, help="run folder")
     p.add_argument(
