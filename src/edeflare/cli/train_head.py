@@ -57,7 +57,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     )
     p.add_argument("--hidden", type=_widths, default=(32, 16), help="hidden widths, e.g. 32,16")
     p.add_argument(
-        "--per-window", type=int, default=3000, help="training events drawn per window and class"
+        "--per-window", type=int, default=2000, help="training events drawn per window and class"
     )
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-3)

@@ -12,7 +12,9 @@ The recipe (``edeflare train-head``):
    network gives each event its keep logit (no rules) and
    :func:`~edeflare.models.event_features.window_features` its evidence.
    Up to ``per_window`` events of each class are drawn per window, so every window
-   (sparse or dense, small sensor or large) weighs alike.
+   (sparse or dense, small sensor or large) weighs alike. Where a pair stores the scene
+   alone (its ``background`` stream), its windows are learned from too, every event
+   kept: real recordings often hold no light, and simulated pairs always do.
 3. **Fit.** :class:`~edeflare.models.event_head.EventHead`, standardised on its
    training events, trained with Adam on the balanced cross-entropy of
    :math:`\sigma(h + \ln 3)` (the mask's keep probability).
@@ -117,11 +119,14 @@ class HeadTrainingConfig:
 
     features: tuple[str, ...] = tuple(FEATURES)
     hidden: tuple[int, ...] = (32, 16)
-    per_window: int = 3_000
+    per_window: int = 2_000
     """Events of each class drawn per training window."""
     val_per_window: int = 20_000
     """Events drawn per validation window (classes as they come)."""
     tolerance_us: int = 1_000
+    light_free_windows: bool = True
+    """Also learn from the windows of the scene alone (a pair's ``background`` stream,
+    where the simulator stored it), every event kept: a recording without a light."""
     epochs: int = 8
     batch_size: int = 4_096
     lr: float = 3e-3
@@ -157,39 +162,45 @@ def collect_features(
     for k, path in enumerate(progress_bar(files, enabled=progress, desc=desc, unit="file")):
         inp, gt, size, start, end = read_sequence(path)
         labels = keep_labels(inp, gt, config.tolerance_us)
-        light = _light_events(path)
+        light = _component(path, "light")
         if light is not None:  # the light source itself is scene, not flare
             labels |= keep_labels(inp, light, config.tolerance_us)
-        for s, part in _windows(inp, start, end, window_us):
-            ev = inp[part]
-            logit = window_logits([(s, ev)], size)[0]
-            ctx = WindowContext(ev, size, covered_us(ev, s, window_us))
-            f = window_features(ctx, logit, config.features, window_us=window_us)
-            y = labels[part]
-            if balanced:
-                take = np.concatenate(
-                    [_draw(rng, np.flatnonzero(y == c), config.per_window) for c in (False, True)]
-                )
-            else:
-                take = _draw(rng, np.arange(ev.size), config.val_per_window)
-            xs.append(f[take])
-            ys.append(y[take])
-            fs.append(np.full(take.size, k, np.int32))
+        streams = [(inp, labels, k)]
+        scene = _component(path, "background") if config.light_free_windows else None
+        if scene is not None:  # the scene alone, as a recording without a light sees it
+            streams.append((scene, np.ones(scene.size, bool), -1 - k))
+        for events, truth, source in streams:
+            for s, part in _windows(events, start, end, window_us):
+                ev = events[part]
+                logit = window_logits([(s, ev)], size)[0]
+                ctx = WindowContext(ev, size, covered_us(ev, s, window_us))
+                f = window_features(ctx, logit, config.features, window_us=window_us)
+                y = truth[part]
+                if balanced:
+                    take = np.concatenate(
+                        [_draw(rng, np.flatnonzero(y == c), config.per_window) for c in (0, 1)]
+                    )
+                else:
+                    take = _draw(rng, np.arange(ev.size), config.val_per_window)
+                xs.append(f[take])
+                ys.append(y[take])
+                fs.append(np.full(take.size, source, np.int32))
     if not xs:
         raise EdeflareError("no events to learn from in " + ", ".join(map(str, files[:3])))
     return {"x": np.concatenate(xs), "y": np.concatenate(ys), "source": np.concatenate(fs)}
 
 
-def _light_events(path: Path) -> np.ndarray | None:
-    """The file's ``light`` stream (the source through the clean lens), if it has one."""
+def _component(path: Path, group: str) -> np.ndarray | None:
+    """A stream the simulator stored beside the pair (``light``: the source through the
+    clean lens; ``background``: the scene without the light), if the file has it."""
     import h5py
 
     from ..io.dsec import DsecReader
 
     with h5py.File(path, "r") as f:
-        if "light/events" not in f:
+        if f"{group}/events" not in f:
             return None
-    with DsecReader(path, group="light/events") as reader:
+    with DsecReader(path, group=f"{group}/events") as reader:
         return reader.read()
 
 
@@ -334,7 +345,12 @@ def train_head(
     train, val = sets["train"], sets["test"]
     head = fit_head(train["x"], train["y"], config, progress=progress)
     val_files = summary_files["test"]
-    groups = np.array([Path(val_files[i]).parent.parent.name for i in val["source"]])
+    groups = np.array(
+        [
+            Path(val_files[i]).parent.parent.name if i >= 0 else "scene without a light"
+            for i in val["source"]
+        ]
+    )
     logits = head_logits(head.numpy_params(), val["x"])
     threshold, table = choose_threshold(logits, val["y"], groups)
     net.head = head
