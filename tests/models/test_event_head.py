@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -283,3 +284,25 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
     again = train_head(parts, base, tmp_path / "run", config, progress=False)
     assert again["keep_threshold"] == summary["keep_threshold"]
     assert sorted(p.name for p in (tmp_path / "run").glob("features-*.npz")) == cached
+
+
+def test_the_scene_alone_is_learned_from_with_every_event_kept(tmp_path, rng):
+    from edeflare.models.head_training import collect_features
+
+    scene = random_events(rng, 400, (32, 24), t0=0, span_us=40_000)
+    flare = random_events(rng, 300, (32, 24), t0=0, span_us=40_000)
+    inp = np.sort(np.concatenate([scene, flare]), order="t", kind="stable")
+    path = tmp_path / "p.h5"
+    write_dsec_groups(path, {"input": inp, "gt": scene, "background": scene}, (32, 24))
+
+    def logits(batch, size):
+        return [np.zeros(ev.size, np.float32) for _, ev in batch]
+
+    config = HeadTrainingConfig(features=("polarity",), val_per_window=10_000)
+    got = collect_features([path], logits, 20_000, config, balanced=False, progress=False)
+    pair, alone = got["source"] == 0, got["source"] == -1
+    assert pair.sum() == inp.size and alone.sum() == scene.size
+    assert got["y"][alone].all() and got["y"][pair].sum() == scene.size
+    off = dataclasses.replace(config, light_free_windows=False)
+    got = collect_features([path], logits, 20_000, off, balanced=False, progress=False)
+    assert (got["source"] == 0).all()
