@@ -86,6 +86,10 @@ def _card(path: Path) -> int:
             if rule.active(params):
                 knobs = ", ".join(f"{k} {v:g}" for k, v in vars(params).items() if v)
                 print(f"{'rule ' + rule.name:<11} {knobs}")
+        if card.head:
+            widths = ", ".join(map(str, card.head["hidden"])) or "none"
+            print(f"head        learned: {len(card.head['features'])} features, hidden {widths}")
+            print(f"features    {', '.join(card.head['features'])}")
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")
     for name in ("data", "command", "notes"):

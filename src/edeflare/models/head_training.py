@@ -361,6 +361,9 @@ def train_head(
         keep_threshold=threshold,
         command=command or card.command,
         data=" ".join(str(d) for d in folders),
+        metrics={"head_validation_score": max(r["score"] for r in table)},
+        notes=f"a learned keep head over the network of {base.name}, threshold chosen on "
+        "the data's test splits",
     )
     save_model(run / "model.safetensors", net, card)
     summary = {
