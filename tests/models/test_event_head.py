@@ -306,3 +306,15 @@ def test_the_scene_alone_is_learned_from_with_every_event_kept(tmp_path, rng):
     off = dataclasses.replace(config, light_free_windows=False)
     got = collect_features([path], logits, 20_000, off, balanced=False, progress=False)
     assert (got["source"] == 0).all()
+
+
+def test_a_model_with_a_head_is_bundled_with_its_tensors_unchanged(tmp_path):
+    from edeflare.models.bundle import bundle_weights
+    from edeflare.models.weights import read_tensors
+
+    save_with_head(tmp_path / "h.safetensors", passthrough_head())
+    card = bundle_weights(tmp_path / "h.safetensors", tmp_path / "b.safetensors", {"data": "x"})
+    assert card["head"] == {"features": ["net_logit", "polarity"], "hidden": []}
+    a, b = read_tensors(tmp_path / "h.safetensors"), read_tensors(tmp_path / "b.safetensors")
+    assert sorted(a) == sorted(b) and all(torch.equal(a[k], b[k]) for k in a)
+    assert "head.layers.0.weight" in b

@@ -201,11 +201,16 @@ def _check_fits(path: Path, tensors: dict[str, torch.Tensor], key: str, card: di
     if key == _MODEL_KEY:
         from . import create_model
 
+        from .event_head import EventHead
+
         try:
-            expected = create_model(card["preset"]).state_dict()
+            model = create_model(card["preset"])
         except ValueError as exc:
             raise WeightsError(f"{path}: {exc}") from None
-        what = f"preset {card['preset']!r}"
+        if card.get("head"):  # a learned keep head rides with the network
+            model.head = EventHead(**card["head"])
+        expected = model.state_dict()
+        what = f"preset {card['preset']!r}" + (" with its keep head" if card.get("head") else "")
     else:
         from ..recon.network import FireNet
 
