@@ -200,7 +200,6 @@ def _check_fits(path: Path, tensors: dict[str, torch.Tensor], key: str, card: di
     """Raise unless ``tensors`` are exactly those of the model ``card`` describes."""
     if key == _MODEL_KEY:
         from . import create_model
-
         from .event_head import EventHead
 
         try:
