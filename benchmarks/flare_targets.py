@@ -167,7 +167,7 @@ def real_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
                 model.light_kept >= REAL_LIGHT,
             ),
         ]
-        if not math.isnan(model.background_kept):
+        if result.lights.score_background and not math.isnan(model.background_kept):
             verdicts.append(
                 _verdict(
                     f"{name}: scene kept",
