@@ -14,7 +14,7 @@ whether it is met, and writes ``results/flare_targets.json``:
    **Leave-one-out** (:mod:`edeflare.eval.leave_one_out`): the model's keep threshold
    chosen on the other annotated recordings (Gen3, DAVIS lamps and the reference
    window of ``reference_window.py``) and scored on the one held out, beside the
-   card's threshold (chosen on simulated validation sequences) and the in-sample best.
+   card's threshold (whatever chose it: the card says) and the in-sample best.
 2. **eflare-r-sim** (640x480, never trained on): better than the raw input and every
    baseline on all eight metrics, Chamfer at least 35 % below the raw input's. A
    *keep-only oracle* row (the input's events within 2 normalised units of a
@@ -253,7 +253,7 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
         rows.append(
             {
                 "recording": h.recording,
-                "card threshold (simulation)": card,
+                "card threshold": card,
                 "combined at card's": cached(h.recording, round(card, 2)),
                 "threshold of the others": h.chosen,
                 "combined held out": h.held_out,
@@ -263,7 +263,7 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
         )
         verdicts.append(
             _verdict(
-                f"{h.recording}: combined, threshold from simulation",
+                f"{h.recording}: combined at the card's threshold",
                 "not below the leave-one-out choice",
                 cached(h.recording, round(card, 2)),
                 cached(h.recording, round(card, 2)) >= h.held_out - 0.005,
