@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 
@@ -58,3 +59,12 @@ def test_both_runtimes_agree_on_a_real_recording(runtime):
     torch_out = deflare(rec.events, rec.sensor_size, "model", weights="general", runtime="torch")
     out = deflare(rec.events, rec.sensor_size, "model", weights="general", runtime=runtime)
     assert abs(out.size - torch_out.size) <= rec.events.size // 1000
+
+
+@pytest.mark.parametrize("size", [(64, 64), (8, 6)])
+def test_recordings_smaller_than_its_context_are_de_flared(size, rng):
+    from conftest import random_events
+
+    ev = random_events(rng, 4_000, size, t0=0, span_us=60_000)
+    out = deflare(ev, size, "model", weights="general")
+    assert out.size <= ev.size and np.isin(out["t"], ev["t"]).all()
