@@ -318,3 +318,19 @@ def test_a_model_with_a_head_is_bundled_with_its_tensors_unchanged(tmp_path):
     a, b = read_tensors(tmp_path / "h.safetensors"), read_tensors(tmp_path / "b.safetensors")
     assert sorted(a) == sorted(b) and all(torch.equal(a[k], b[k]) for k in a)
     assert "head.layers.0.weight" in b
+
+
+def test_time_since_the_pixels_last_event_equals_a_sort_by_pixel(rng):
+    from edeflare.models.event_features import _since_pixel
+
+    ev = random_events(rng, 50_000, (64, 48), t0=0, span_us=20_000)
+    pixel = ev["y"].astype(np.int64) * 64 + ev["x"]
+    order = np.argsort(pixel, kind="stable")  # time order within each pixel
+    p, t = pixel[order], ev["t"].astype(np.int64)[order]
+    gap = np.full(ev.size, 20_000, np.int64)
+    same = p[1:] == p[:-1]
+    gap[1:][same] = (t[1:] - t[:-1])[same]
+    want = np.empty(ev.size, np.int64)
+    want[order] = gap
+    np.testing.assert_array_equal(_since_pixel(ev, 64, 48, 20_000), want)
+    np.testing.assert_array_equal(_since_pixel(ev, 64, 48, 20_000), want)  # frame left reset
