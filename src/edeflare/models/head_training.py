@@ -359,7 +359,7 @@ def train_head(
         head=head.spec(),
         rules={},
         keep_threshold=threshold,
-        command=command or card.command,
+        command=command or f"train_head({[str(d) for d in data]!r}, {str(base)!r})",
         data=" ".join(str(d) for d in folders),
         metrics={"head_validation_score": max(r["score"] for r in table)},
         notes=f"a learned keep head over the network of {base.name}, threshold chosen on "
