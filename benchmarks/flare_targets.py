@@ -43,6 +43,7 @@ the whole run takes 25-35 minutes on 2 cores. Run::
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 from pathlib import Path
 from typing import Any
@@ -62,7 +63,7 @@ from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
 from edeflare.lights import bundled_lights, load_lights
 from edeflare.methods import Method, Streamer, create_method, deflare
-from edeflare.models.infer import DEFAULT_MODEL, bundled_weights
+from edeflare.models.infer import resolve_weights
 from edeflare.models.weights import read_card
 
 RECORDINGS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
@@ -206,16 +207,12 @@ def no_light_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     return rows, verdicts
 
 
-def _model_weights(args: argparse.Namespace) -> Any:
-    return args.model if args.model is not None else bundled_weights(DEFAULT_MODEL)
-
-
 def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     """Target 1, held out: the keep threshold chosen on the other annotated recordings."""
     from reference_window import LIGHTS as WINDOW_LIGHTS
     from reference_window import PICTURE, SENSOR, reference_window
 
-    weights = _model_weights(args)
+    weights = resolve_weights(args.model)
     card = read_card(weights).keep_threshold
     settings = sorted({*LOO_THRESHOLDS, round(card, 2)})
     recordings = [r for r in RECORDINGS if (args.real / r).is_file()]
@@ -240,12 +237,7 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
         )  # fmt: skip
         return result.rows[0].combined
 
-    cache: dict[tuple[str, float], float] = {}
-
-    def cached(name: str, threshold: float) -> float:
-        if (name, threshold) not in cache:
-            cache[name, threshold] = score(name, threshold)
-        return cache[name, threshold]
+    cached = functools.cache(score)  # the table below asks the card's threshold again
 
     held = leave_one_out(cached, names, settings)
     rows, verdicts = [], []

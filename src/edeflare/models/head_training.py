@@ -134,7 +134,8 @@ class HeadTrainingConfig:
 
 
 def _windows(events: np.ndarray, start: int, end: int, window_us: int):
-    """``(window_start, slice)`` of a sorted stream cut into the model's windows."""
+    """``(window_start, slice)`` of a sorted stream cut into the model's windows (slices, not
+    the events of :func:`~edeflare.events.iter_time_windows`: the labels are cut alike)."""
     t = events["t"]
     for s in range(int(start), int(end), int(window_us)):
         lo, hi = np.searchsorted(t, [s, s + window_us])
@@ -260,6 +261,8 @@ def choose_threshold(
     >>> 0.1 < thr < 0.75
     True
     """
+    from ..eval.score import combined_score  # the scorer's harmonic mean of defined terms
+
     prob = 1.0 / (1.0 + np.exp(-(logits.astype(np.float64) + LN3)))
     table = []
     for thr in np.round(np.arange(0.05, 0.951, 0.05), 2):
@@ -270,10 +273,7 @@ def choose_threshold(
             flare, scene = sel & ~y, sel & y
             removed = 1.0 - kept[flare].mean() if flare.any() else np.nan
             scene_kept = kept[scene].mean() if scene.any() else np.nan
-            terms = [v for v in (removed, scene_kept) if not np.isnan(v)]
-            scores.append(
-                0.0 if min(terms, default=0) == 0 else len(terms) / sum(1 / v for v in terms)
-            )
+            scores.append(combined_score(removed, scene_kept, np.nan))
         table.append({"threshold": float(thr), "score": float(np.mean(scores))})
     best = max(table, key=lambda r: r["score"])
     return best["threshold"], table
@@ -315,18 +315,20 @@ def train_head(
     network; write ``run_dir/model.safetensors`` (network, head, card with the threshold
     chosen on the test splits) and ``run_dir/head.json``; return that summary."""
     from .infer import ModelDeflarer
-    from .weights import load_model, save_model
+    from .weights import read_card, save_model
 
     config = config or HeadTrainingConfig()
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
     folders = [part for d in data for part in dataset_folders(d)]
     base = Path(base_weights)
-    net, card = load_model(base)
-    if getattr(net, "head", None) is not None:
-        del net.head  # a fresh head over the same network
+    card = read_card(base)
+    # the base network's own keep logits: its rules off, any head of its own left out
     deflarer = ModelDeflarer(base, runtime="torch", batch_windows=1, **{k: 0 for k in card.rules})
     deflarer.head_params = None
+    net = deflarer.model
+    if getattr(net, "head", None) is not None:
+        del net.head  # a fresh head over the same network
     summary_files: dict[str, list[str]] = {}
     sets = {}
     for split, balanced in (("train", True), ("test", False)):
