@@ -19,7 +19,8 @@ middle time.
   (an OFF burst as the blob arrives, an ON burst as it leaves) whose last events come
   after the disc has left the pixel, as the photoreceptor settles; ``response_us`` is
   the 95th percentile over those pixels of the last event's delay after the disc left
-  (:func:`response_time`; the raster ``lights_gen3_pixel_trains.png`` shows the trains).
+  (``edeflare.lights.light_response``; the raster ``lights_gen3_pixel_trains.png``
+  shows the trains).
 - ``davis346_flicker_lamps.aedat4``: two fixed ceiling lamps, found on the whole
   recording's event density by ``edeflare.lights.detect_light_source``.
 
@@ -40,8 +41,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from edeflare import read_events
-from edeflare.eval.score import Lights, LightSource, classify_events
-from edeflare.lights import detect_light_source
+from edeflare.eval.score import classify_events
+from edeflare.lights import Lights, LightSource, detect_light_source, light_response
 from edeflare.viz import event_frame, grid, save_image
 
 # When each annotation was last changed (Gen3: the response time added).
@@ -103,67 +104,6 @@ def gen3_track(events: np.ndarray, window_us: int = 1_000) -> tuple[np.ndarray, 
         "window_us": window_us,
     }
     return track, info
-
-
-def response_time(
-    events: np.ndarray, track: np.ndarray, r: float, quantile: float = 0.95
-) -> tuple[float, dict, list[np.ndarray]]:
-    """How long the pixels a moving disc covered keep firing after it has left them.
-
-    For each pixel whose distance ``m`` to the track is below ``r - 2`` px and which the
-    disc passes between 10 ms after the recording's start and 15 ms before its end:
-    the disc leaves it ``sqrt(r^2 - m^2) / v`` after its closest approach (``v`` the
-    blob's speed); its train is its events from 10 ms before the approach to 30 ms
-    after. Returns the ``quantile`` of (last event - exit), rounded up to 0.1 ms and
-    at least 0, the record, and the trains of 40 pixels (event times minus exit, and
-    polarities) for the figure.
-    """
-    tt = np.linspace(track[0, 0], track[-1, 0], 5_000)
-    tx, ty = (np.interp(tt, track[:, 0], track[:, k]) for k in (1, 2))
-    speed = float(np.hypot(np.diff(tx), np.diff(ty)).sum() / (tt[-1] - tt[0]))  # px/us
-    t = events["t"].astype(np.int64)
-    width = int(events["x"].max()) + 1
-    pix = events["y"].astype(np.int64) * width + events["x"]
-    order = np.lexsort((t, pix))
-    pix_s, t_s, p_s = pix[order], t[order], events["p"][order]
-    uniq, start, count = np.unique(pix_s, return_index=True, return_counts=True)
-    ux, uy = (uniq % width).astype(np.float64), (uniq // width).astype(np.float64)
-    nearest, dist = np.zeros(uniq.size, np.int64), np.full(uniq.size, np.inf)
-    for k in range(0, tt.size, 250):  # chunks bound the memory of the distance table
-        d = np.hypot(ux[:, None] - tx[None, k : k + 250], uy[:, None] - ty[None, k : k + 250])
-        j = d.argmin(1)
-        better = d[np.arange(uniq.size), j] < dist
-        nearest[better], dist[better] = j[better] + k, d[np.arange(uniq.size), j][better]
-    passed = tt[nearest]
-    chosen = np.nonzero(
-        (dist < r - 2) & (passed > track[0, 0] + 10_000) & (passed < track[-1, 0] - 15_000)
-    )[0]
-    delays, after, total, trains = [], 0, 0, []
-    for n, k in enumerate(chosen):
-        sl = slice(start[k], start[k] + count[k])
-        ts = t_s[sl]
-        keep = (ts > passed[k] - 10_000) & (ts < passed[k] + 30_000)
-        if not keep.any():
-            continue
-        exit_us = passed[k] + np.sqrt(r * r - dist[k] ** 2) / speed
-        rel = ts[keep] - exit_us
-        delays.append(rel[-1])
-        after += int((rel > 0).sum())
-        total += rel.size
-        if n % max(1, chosen.size // 40) == 0 and len(trains) < 40:
-            trains.append(np.c_[rel, p_s[sl][keep]])
-    q = float(np.quantile(delays, quantile))
-    response_us = max(0.0, float(np.ceil(q / 100.0) * 100.0))
-    record = {
-        "response_pixels": len(delays),
-        "response_events_after_exit_share": round(after / total, 4),
-        "response_last_event_after_exit_us_p50_p90_p95_p99": [
-            round(float(v)) for v in np.quantile(delays, [0.5, 0.9, 0.95, 0.99])
-        ],
-        "response_quantile": quantile,
-        "blob_speed_px_per_ms": round(speed * 1000, 2),
-    }
-    return response_us, record, trains
 
 
 def train_raster(
@@ -276,9 +216,14 @@ def main(argv: list[str] | None = None) -> int:
     cy = np.interp(events["t"], track[:, 0], track[:, 2])
     r = radius_from_profile(np.hypot(events["x"] - cx, events["y"] - cy))
     rows = [[round(float(a)), round(float(b), 1), round(float(c), 1), r] for a, b, c in track]
-    response_us, response_info, trains = response_time(events, track, r)
-    info = {**info, **response_info}
-    save_image(args.figures / "lights_gen3_pixel_trains.png", train_raster(trains, response_us))
+    with_r = np.c_[track[:, :3], np.full(len(track), r)]
+    response = light_response(events, LightSource.track(with_r.tolist()), trains=40)
+    response_us = response.response_us
+    info = {**info, **response.record()}
+    save_image(
+        args.figures / "lights_gen3_pixel_trains.png",
+        train_raster(list(response.trains), response_us),
+    )
     gen3 = Lights(
         (
             LightSource.track(

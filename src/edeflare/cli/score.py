@@ -58,11 +58,13 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     )
     p.add_argument("--max-sources", type=int, default=1, help="--detect-lights: sources per window")
     p.add_argument(
-        "--measure-regions",
+        "--fixed-regions",
         action="store_true",
-        help="--detect-lights: measure each light's halo and ghost reach from the radial event "
-        "rate around it instead of the fixed factors (experimental: docs/scoring.md)",
+        help="--detect-lights: size each light's halo and ghost by the fixed factors alone "
+        "(default: measured from the radial event rate around it, the factors as the least "
+        "halo: docs/scoring.md)",
     )
+    p.add_argument("--measure-regions", action="store_true", help=argparse.SUPPRESS)  # the default
     p.add_argument(
         "--window-ms",
         type=float,
@@ -119,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         overrides=overrides,
         rng=args.seed,
         phases=args.phases,
-        measure=args.measure_regions,
+        measure=not args.fixed_regions,
     )
     markdown = report.to_markdown()
     print(markdown, end="")

@@ -429,7 +429,7 @@ def score_recording(
     method_params: Mapping[str, Mapping[str, Any]] | None = None,
     rng: np.random.Generator | int | None = 0,
     phases: int = 1,
-    measure: bool = False,
+    measure: bool = True,
 ) -> ScoreReport:
     """Score methods (run now) and de-flared files on a real recording without ground truth.
 
@@ -457,9 +457,9 @@ def score_recording(
         Seeds methods that draw.
     measure : bool
         With detected lights: measure how far each one's halo and ghost reach in
-        the recording (:func:`~edeflare.lights.measure_regions`) instead of the
-        fixed factors. Experimental: right on synthetic flare, not yet on the
-        annotated real recordings (``docs/scoring.md``).
+        the recording (:func:`~edeflare.lights.measure_regions`: the fixed factors
+        the least halo, no ghost region where none shows); False: the fixed
+        factors alone.
     phases : int
         Run each method on the recording delayed by ``k * window_us // phases``
         for ``k = 0 .. phases - 1`` (then undone) and report the mean scores,
@@ -514,15 +514,15 @@ def score_recording(
         if regions.background.mean() <= DARK_SHARE:  # a light in the dark: noise around it
             the_lights = dataclasses.replace(the_lights, score_background=False)
         classified = (the_lights, regions)  # the regions do not depend on score_background
-        if measure:
-            # where the flare reaches, from the recording (the factors where it shows none)
-            the_lights = measure_regions(events, size, the_lights)
         source = "detect"
     if overrides:
         try:
             the_lights = dataclasses.replace(the_lights, **dict(overrides))
         except TypeError as exc:
             raise ParameterError(str(exc)) from None
+    if measure and source == "detect":
+        # where the flare reaches, from the recording (the factors the least halo)
+        the_lights = measure_regions(events, size, the_lights)
     if isinstance(phases, bool) or not isinstance(phases, (int, np.integer)) or phases < 1:
         raise ParameterError(f"phases must be a positive int, got {phases!r}")
     if phases > window_us:

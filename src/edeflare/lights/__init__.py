@@ -10,7 +10,8 @@
   :func:`track_lights` (followed from window to window, a radius from the rings
   around each: what the scorer uses without an annotation);
   :func:`measure_regions` / :func:`flare_reach`: how far each source's halo and
-  ghost reach, from the radial event rate around it;
+  ghost reach, from the radial event rate around it; :func:`light_response`: how
+  long a moving light's pixels keep firing after it has passed;
 - :func:`window_lights`: the cells of a window that hold a light, the cheap test
   a mask model's rules (:mod:`edeflare.rules`) make in every window.
 
@@ -30,12 +31,14 @@ from __future__ import annotations
 from .cells import window_lights
 from .detect import count_map_of, detect_light_source, detect_lights, light_radius, track_lights
 from .reach import FlareReach, flare_reach, measure_regions
+from .response import LightResponse, light_response
 from .shapes import Circle, Polygon, Shape, light_mask, parse_light
 from .source import Lights, LightSource, bundled_lights, load_lights, parse_lights, save_lights
 
 __all__ = [
     "Circle",
     "FlareReach",
+    "LightResponse",
     "LightSource",
     "Lights",
     "Polygon",
@@ -47,6 +50,7 @@ __all__ = [
     "flare_reach",
     "light_mask",
     "light_radius",
+    "light_response",
     "load_lights",
     "measure_regions",
     "parse_light",

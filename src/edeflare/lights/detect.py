@@ -8,6 +8,7 @@ scorer needs where no annotation exists.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from typing import Any
@@ -24,6 +25,7 @@ from ..events import (
     count_map,
     window_start_for,
 )
+from .response import light_response
 from .rings import centred, ring_pixels
 from .shapes import Circle
 from .source import Lights, LightSource
@@ -291,8 +293,10 @@ def track_lights(
     place), each source becomes a ``track`` through its windows' centres (linear in
     time: a light that moves 13 px a millisecond is where it is, not where it was on
     average over a window), its radius is measured from the rate of events in rings
-    around it (:func:`light_radius`), and its pixels count as its own for a window
-    after it has passed (``response_us``: a moving light's pixels settle).
+    around it (:func:`light_radius`), and its pixels count as its own for as long as
+    they keep firing after it has passed (``response_us``: a moving light's pixels
+    settle; measured by :func:`~edeflare.lights.light_response`, one window where the
+    light stays put or nothing can be measured).
 
     Examples
     --------
@@ -319,11 +323,13 @@ def track_lights(
         table[:, 3] = light_radius(events, check_sensor_size(sensor_size), steps)
         table[:, 0] += window_us / 2  # the window's middle
         name = f"detected-{k}"
-        source = (
-            LightSource.track(table.tolist(), name=name, response_us=float(window_us))
-            if len(table) > 1
-            else LightSource.circle(*table[0, 1:], name=name)
-        )
+        if len(table) > 1:
+            source = LightSource.track(table.tolist(), name=name, response_us=float(window_us))
+            measured = light_response(events, source).response_us
+            if measured is not None:
+                source = dataclasses.replace(source, response_us=max(measured, 0.0))
+        else:
+            source = LightSource.circle(*table[0, 1:], name=name)
         sources.append(source)
     note = f"detected per {window_us} us window and followed"
     return Lights(tuple(sources), note=note, **options)

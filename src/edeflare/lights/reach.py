@@ -6,9 +6,14 @@ source (events per pixel and second, each event's distance taken from the source
 centre at its own time) and finds where it comes down to the background rate: that
 radius is the outer edge of the source's halo. The ghost lies where the source
 reflects through the optical centre, ``(W - 1 - cx, H - 1 - cy)``; its radius is where
-the rate around that point comes down to the background in the same way. Where the
-recording shows no excess (too few events, a ghost too faint to see), the scorer's
-fixed factors of the source radius remain (:class:`~edeflare.lights.Lights`).
+the rate around that point comes down to the background in the same way, and it is a
+ghost only if its events spread evenly round that point (:data:`GHOST_SPREAD`): a
+reflection of the light is a smooth disc or ring, while scene that happens to lie there
+(a lit table's edges) is not. :func:`measure_regions` makes the scorer's regions from
+it: the fixed factors of the source radius (:class:`~edeflare.lights.Lights`) are the
+least halo (a rate test cannot see flare that only replaces scene events near a light,
+such as a lamp's flicker on the wall under it) and the ghost where none can be measured
+apart from the halo; where a ghost is measured to be absent, there is no ghost region.
 
 Examples
 --------
@@ -30,11 +35,19 @@ from ..events import EVENT_DTYPE, SensorSize, check_sensor_size, sort_events
 from .rings import centred, ring_pixels
 from .source import Lights, LightSource
 
-__all__ = ["FlareReach", "flare_reach", "measure_regions", "synthetic_flare"]
+__all__ = ["FlareReach", "flare_reach", "ghost_spread", "measure_regions", "synthetic_flare"]
 
 EXCESS = 0.5
 """A ring is flare while its rate exceeds the background's by this share of it (and by
 three Poisson standard deviations of the ring's own count)."""
+
+GHOST_SPREAD = 0.25
+"""A ghost's events are spread evenly round the light's reflection: over
+:data:`GHOST_SECTORS` sectors of its disc, the relative spread of their rates, beyond
+what Poisson counts alone give, is at most this (drawn ghosts: below 0.1; the lit scene
+under the DAVIS346 lamps' reflections: 0.36-1.0)."""
+
+GHOST_SECTORS = 8
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,7 +56,10 @@ class FlareReach:
 
     ``halo_outer_px`` is the radius (from the source's centre) where the rate meets
     the background, None where no ring exceeds it; ``ghost_radius_px`` likewise
-    around ``ghost_centre``; ``background_rate`` in events per pixel and second.
+    around ``ghost_centre``, None where no ghost shows (``ghost_spread`` says whether
+    an excess there was uneven: scene, not a ghost) or where the reflection lies in
+    the halo (``ghost_in_halo``: not measurable apart from it); ``background_rate``
+    in events per pixel and second.
     """
 
     halo_outer_px: float | None
@@ -51,6 +67,8 @@ class FlareReach:
     ghost_radius_px: float | None
     background_rate: float
     radius_px: float
+    ghost_spread: float | None = None
+    ghost_in_halo: bool = False
 
 
 def _meets_background(
@@ -122,17 +140,77 @@ def flare_reach(
     g_counts = np.histogram(np.hypot(x - (width - 1 - cx), y - (height - 1 - cy)), bins=edges)
     g_ring = _meets_background(g_counts[0].astype(np.float64), g_area, seconds, background, 0)
     ghost = None if g_ring is None else float(edges[min(g_ring, edges.size - 1)])
-    if ghost is not None and halo is not None and math.hypot(gx - mx, gy - my) < halo:
+    # a moving source's reflection moves too: how far apart the two are, in the median
+    apart = float(np.median(np.hypot(2 * cx - (width - 1), 2 * cy - (height - 1))))
+    in_halo = halo is not None and apart < halo
+    spread = None
+    if ghost is not None and in_halo:
         ghost = None  # the ghost lies in the halo: no ring of its own to measure
-    return FlareReach(halo, (gx, gy), ghost, background, mr)
+    elif ghost is not None:
+        spread = ghost_spread(x - (width - 1 - cx), y - (height - 1 - cy), (gx, gy),
+                              (width, height), ghost)  # fmt: skip
+        if spread > GHOST_SPREAD:
+            ghost = None  # an uneven excess: scene that lies there, not the light's image
+    return FlareReach(halo, (gx, gy), ghost, background, mr, spread, in_halo)
+
+
+def ghost_spread(
+    dx: np.ndarray,
+    dy: np.ndarray,
+    centre: tuple[float, float],
+    sensor_size: SensorSize,
+    radius: float,
+    sectors: int = GHOST_SECTORS,
+) -> float:
+    """How unevenly events lie round a point: the relative spread of their rates over
+    ``sectors`` sectors of the disc of ``radius``, less what Poisson counts give.
+
+    ``dx, dy`` are the events' offsets from the point (each at its own time for a
+    moving point); ``centre`` is where it lies in the median, to count each sector's
+    pixels on the sensor (sectors cut to under a third of the fullest by the frame's
+    edge are left out). 0 for an even disc; 1 (at most) for rates as spread as
+    their mean.
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[:41, :41]
+    >>> inside = np.hypot(xx - 20, yy - 20) <= 15
+    >>> dx, dy = (xx[inside] - 20.0), (yy[inside] - 20.0)
+    >>> ghost_spread(np.repeat(dx, 20), np.repeat(dy, 20), (20, 20), (41, 41), 15) < 0.05
+    True
+    >>> half = dx > 0  # only one side lit: an edge, not a ghost
+    >>> ghost_spread(np.repeat(dx[half], 20), np.repeat(dy[half], 20), (20, 20), (41, 41), 15) > 0.5
+    True
+    """
+    width, height = check_sensor_size(sensor_size)
+    yy, xx = np.mgrid[:height, :width]
+    px, py = xx - centre[0], yy - centre[1]
+    disc = np.hypot(px, py) <= radius
+
+    def sector(ax: np.ndarray, ay: np.ndarray) -> np.ndarray:
+        return ((np.arctan2(ay, ax) + np.pi) / (2 * np.pi) * sectors).astype(np.int64) % sectors
+
+    pixels = np.bincount(sector(px[disc], py[disc]), minlength=sectors).astype(np.float64)
+    inside = np.hypot(dx, dy) <= radius
+    counts = np.bincount(sector(dx[inside], dy[inside]), minlength=sectors).astype(np.float64)
+    use = pixels >= pixels.max() / 3
+    rates = counts[use] / pixels[use]
+    mean = float(rates.mean()) if rates.size else 0.0
+    if mean <= 0:
+        return 1.0
+    cv2 = float(rates.var()) / mean**2
+    # what Poisson counts alone give: each sector's CV^2 at the mean rate, 1 / expected count
+    poisson = float(np.mean(1.0 / (mean * pixels[use])))
+    return min(1.0, math.sqrt(max(cv2 - poisson, 0.0)))
 
 
 def measure_regions(events: np.ndarray, sensor_size: SensorSize, lights: Lights) -> Lights:
     """``lights`` with each source's halo and ghost sizes measured from ``events``.
 
-    A source keeps the fixed factors of ``lights`` where nothing was measured
-    (:func:`flare_reach` found no excess), and a halo never ends inside the source's
-    rim (``margin_px``).
+    A halo ends where :func:`flare_reach` finds the rate meets the background, but
+    never inside the fixed factor's reach (``halo_factor`` source radii): the factor is
+    the least halo. A ghost is the measured disc; where the reflection lies in the halo
+    the factor's ghost stays; where no ghost shows, the source gets no ghost region.
 
     Examples
     --------
@@ -145,11 +223,14 @@ def measure_regions(events: np.ndarray, sensor_size: SensorSize, lights: Lights)
     sources = []
     for s in lights.sources:
         found = flare_reach(events, sensor_size, s)
-        changes: dict[str, float] = {}
-        if found.halo_outer_px is not None:
-            changes["halo_outer_px"] = max(found.halo_outer_px, found.radius_px + lights.margin_px)
+        changes: dict[str, float | bool] = {}
+        least = lights.halo_factor * found.radius_px
+        if found.halo_outer_px is not None and found.halo_outer_px > least:
+            changes["halo_outer_px"] = found.halo_outer_px
         if found.ghost_radius_px is not None:
             changes["ghost_radius_px"] = found.ghost_radius_px
+        elif not found.ghost_in_halo:
+            changes["ghost"] = False
         sources.append(dataclasses.replace(s, **changes))
     note = (lights.note + "; " if lights.note else "") + "regions measured from the recording"
     return dataclasses.replace(lights, sources=tuple(sources), note=note)
