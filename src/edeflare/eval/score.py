@@ -500,7 +500,6 @@ def score_recording(
     events, size = read_events(recording)
     if events.size == 0:
         raise EventFileError(recording, "no events: nothing to score")
-    classified: tuple[Lights, Regions] | None = None
     if isinstance(lights, Lights):
         the_lights, source = lights, "given"
     elif lights is not None:
@@ -510,19 +509,21 @@ def score_recording(
             the_lights = track_lights(events, size, max_sources=max_sources)
         except ParameterError as exc:
             raise EventFileError(recording, str(exc)) from None
-        regions = classify_events(events, the_lights, size)
-        if regions.background.mean() <= DARK_SHARE:  # a light in the dark: noise around it
-            the_lights = dataclasses.replace(the_lights, score_background=False)
-        classified = (the_lights, regions)  # the regions do not depend on score_background
         source = "detect"
     if overrides:
         try:
             the_lights = dataclasses.replace(the_lights, **dict(overrides))
         except TypeError as exc:
             raise ParameterError(str(exc)) from None
-    if measure and source == "detect":
-        # where the flare reaches, from the recording (the factors the least halo)
-        the_lights = measure_regions(events, size, the_lights)
+    regions: Regions | None = None
+    if source == "detect":
+        if measure:
+            # where the flare reaches, from the recording (the factors the least halo)
+            the_lights = measure_regions(events, size, the_lights)
+        regions = classify_events(events, the_lights, size)
+        if regions.background.mean() <= DARK_SHARE:  # a light in the dark: noise around it
+            # (the regions do not depend on score_background)
+            the_lights = dataclasses.replace(the_lights, score_background=False)
     if isinstance(phases, bool) or not isinstance(phases, (int, np.integer)) or phases < 1:
         raise ParameterError(f"phases must be a positive int, got {phases!r}")
     if phases > window_us:
@@ -568,7 +569,7 @@ def score_recording(
             rows,
             [score_events(events, o, the_lights, size, window_us=window_us) for o in by_phase[1:]],
         )
-    if classified is None or classified[0] is not the_lights:  # measured or overridden
+    if regions is None:
         regions = classify_events(events, the_lights, size)
     counts = {r: int(regions.mask(r).sum()) for r in (*REGIONS, "rim")}
     return ScoreReport(
