@@ -327,7 +327,7 @@ def track_lights(
             source = LightSource.track(table.tolist(), name=name, response_us=float(window_us))
             measured = light_response(events, source).response_us
             if measured is not None:
-                source = dataclasses.replace(source, response_us=max(measured, 0.0))
+                source = dataclasses.replace(source, response_us=measured)
         else:
             source = LightSource.circle(*table[0, 1:], name=name)
         sources.append(source)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..events import check_events
 from .source import LightSource
@@ -119,13 +120,8 @@ def light_response(
     pix_s, t_s, p_s = pix[order], t[order], events["p"][order]
     uniq, start, count = np.unique(pix_s, return_index=True, return_counts=True)
     ux, uy = (uniq % width).astype(np.float64), (uniq // width).astype(np.float64)
-    nearest, dist = np.zeros(uniq.size, np.int64), np.full(uniq.size, np.inf)
-    for k in range(0, tt.size, 250):  # chunks bound the memory of the distance table
-        d = np.hypot(ux[:, None] - tx[None, k : k + 250], uy[:, None] - ty[None, k : k + 250])
-        j = d.argmin(1)
-        dj = d[np.arange(uniq.size), j]
-        better = dj < dist
-        nearest[better], dist[better] = j[better] + k, dj[better]
+    # each pixel's closest approach: the nearest of the path's samples
+    dist, nearest = cKDTree(np.c_[tx, ty]).query(np.c_[ux, uy])
     passed = tt[nearest]
     chosen = np.flatnonzero((dist < r - 2) & (passed > t[0] + 10_000) & (passed < t[-1] - 15_000))
     delays, kept_trains, after, total = [], [], 0, 0
