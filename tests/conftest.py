@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -71,6 +72,16 @@ def browser() -> str:
             return found
     require(f"no browser on PATH (looked for {', '.join(BROWSERS)}; apt install chromium)")
     raise AssertionError("unreachable")
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _ctrl_c_reaches_the_tests():
+    """Ctrl-C raises KeyboardInterrupt in the tests and the programs they start, also in a
+    run started with SIGINT ignored (a background job of a non-interactive shell, or
+    ``nohup``), which Python and every child would otherwise inherit."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
 
 
 @pytest.fixture
