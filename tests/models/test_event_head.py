@@ -284,6 +284,14 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
     again = train_head(parts, base, tmp_path / "run", config, progress=False)
     assert again["keep_threshold"] == summary["keep_threshold"]
     assert sorted(p.name for p in (tmp_path / "run").glob("features-*.npz")) == cached
+    # a head of another size and schedule reuses them too; other features do not
+    wider = dataclasses.replace(config, hidden=(16, 4), epochs=3, lr=1e-3)
+    train_head(parts, base, tmp_path / "run", wider, progress=False)
+    assert sorted(p.name for p in (tmp_path / "run").glob("features-*.npz")) == cached
+    assert read_card(tmp_path / "run" / "model.safetensors").head["hidden"] == [16, 4]
+    fewer = dataclasses.replace(config, features=("net_logit", "rate_8"))
+    train_head(parts, base, tmp_path / "run", fewer, progress=False)
+    assert len(list((tmp_path / "run").glob("features-*.npz"))) == 4
 
 
 def test_the_scene_alone_is_learned_from_with_every_event_kept(tmp_path, rng):

@@ -282,10 +282,17 @@ def choose_threshold(
 # ----------------------------------------------------------------------------- the run
 
 
+_FEATURE_FIELDS = ("features", "per_window", "val_per_window", "tolerance_us",
+                   "light_free_windows", "seed")  # fmt: skip
+"""The config fields the collected features depend on (not the fit's: a head of another
+size or schedule reuses a run's features)."""
+
+
 def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kind: str) -> str:
     h = hashlib.sha256()
     h.update(file_sha256(base).encode())
-    h.update(json.dumps([dataclasses.asdict(config), kind, "gt|light"], sort_keys=True).encode())
+    fields = {k: v for k, v in dataclasses.asdict(config).items() if k in _FEATURE_FIELDS}
+    h.update(json.dumps([fields, kind, "gt|light"], sort_keys=True).encode())
     for f in files:
         h.update(f"{f.parent.parent.name}/{f.parent.name}/{f.name}:{f.stat().st_size}".encode())
     return h.hexdigest()[:16]
