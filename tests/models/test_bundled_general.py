@@ -19,10 +19,12 @@ from edeflare.models.weights import read_card, read_tensors
 def test_the_card_names_its_head_its_data_and_no_rule():
     card = read_card(bundled_weights("general"))
     assert card.preset == "mask.pixel" and card.rules == {}
-    assert card.head == {"features": list(FEATURES), "hidden": [32, 16]}
+    assert card.head == {"features": list(FEATURES), "hidden": [64, 32]}
     # chosen on the mix's validation sequences (head.json), not on a real recording
-    assert card.keep_threshold == 0.45
-    assert card.command == "edeflare train-head MIX --weights night --out RUN"
+    assert card.keep_threshold == 0.4
+    assert card.command == (
+        "edeflare train-head MIX --weights night --out RUN --hidden 64,32 --epochs 16"
+    )
     assert "--recipe eflare-mix" in card.data
     assert DEFAULT_MODEL == "night"  # not the default: see general.md
 
@@ -33,20 +35,21 @@ def test_its_network_is_nights_unchanged():
     head = {k for k in general if k.startswith("head.")}
     assert set(general) - head == set(night)
     assert all(torch.equal(general[k], night[k]) for k in night)
-    # 21 x 32 + 32, 32 x 16 + 16, 16 + 1 weights, and the standardisation
-    assert sum(general[k].numel() for k in head if ".layers." in k) == 1_249
+    # 21 x 64 + 64, 64 x 32 + 32, 32 + 1 weights, and the standardisation
+    assert sum(general[k].numel() for k in head if ".layers." in k) == 3_521
 
 
 def test_on_real_recordings_it_does_what_its_card_says():
-    # general.md's rows (four phases there, one here): Gen3 flare gone, some light lost;
+    # general.md's rows (four phases there, one here; measured 99.7 / 89.1 % on Gen3,
+    # 18.4 / 98.9 % on the DAVIS lamps): Gen3's flare gone, a tenth of its light lost;
     # the DAVIS lamps' sparse flare mostly kept (what it cannot do)
     gen3, davis = (
         score_recording(real_data_dir() / name, ["model"], lights=bundled_lights(name),
                         method_params={"model": {"weights": "general"}}).rows[0]
         for name in ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
     )  # fmt: skip
-    assert gen3.flare_removed >= 0.97 and 0.7 <= gen3.light_kept <= 0.85
-    assert davis.flare_removed <= 0.2 and davis.light_kept >= 0.9
+    assert gen3.flare_removed >= 0.97 and 0.85 <= gen3.light_kept <= 0.95
+    assert davis.flare_removed <= 0.3 and davis.light_kept >= 0.95
     street = read_events(real_data_dir() / "davis346_street_cars.aedat4")
     kept = deflare(street.events, street.sensor_size, "model", weights="general")
     assert kept.size / street.events.size >= 0.99
