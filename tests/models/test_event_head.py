@@ -113,6 +113,18 @@ def test_numpy_head_equals_the_torch_head_with_its_standardisation():
     )
 
 
+def test_numpy_head_in_blocks_equals_one_block(monkeypatch, rng):
+    import edeflare.models.event_head as event_head
+
+    head = EventHead(["net_logit", "support", "halo"], hidden=(8, 4))
+    params = head.numpy_params()
+    x = rng.normal(size=(1_000, 3)).astype(np.float32)
+    whole = head_logits(params, x)
+    monkeypatch.setattr(event_head, "HEAD_BLOCK", 64)  # 16 blocks, the last one short
+    np.testing.assert_allclose(head_logits(params, x), whole, rtol=1e-6, atol=1e-6)
+    assert head_logits(params, x[:0]).shape == (0,)
+
+
 def passthrough_head() -> EventHead:
     """A head whose logit is the network's (a logistic layer of weight 1 on net_logit)."""
     head = EventHead(["net_logit", "polarity"], hidden=())

@@ -26,6 +26,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections.abc import Sequence
 
@@ -245,12 +246,15 @@ def window_features(
                 if n
                 else np.zeros(0, bool)
             )
+    # Features of a pixel or a cell are computed once on its grid and gathered per event:
+    # the same numbers, a dense window holding far more events than pixels or cells.
+    pixel = y * width + x
     if need & {"rate_pixel", "balance_pixel"}:
-        pixel = y * width + x
         count = np.bincount(pixel, minlength=width * height)
         signed = np.bincount(pixel, weights=sign, minlength=width * height)
-        cols["rate_pixel"] = np.log1p(count[pixel] * scale)
-        cols["balance_pixel"] = signed[pixel] / count[pixel]
+        cols["rate_pixel"] = np.log1p(count * scale)[pixel]
+        balance = np.divide(signed, count, out=np.zeros(count.size), where=count > 0)
+        cols["balance_pixel"] = balance[pixel]
     h, w = -(-height // _CELL), -(-width // _CELL)
     cid = (y // _CELL) * w + x // _CELL
     if need & {"rate_8", "rate_32", "rate_128", "balance_8", "balance_32"}:
@@ -259,7 +263,7 @@ def window_features(
         for name, radius in (("8", 0), ("32", 2), ("128", 8)):
             count = _box(per_cell, radius) if radius else per_cell
             area = _box_area(h, w, radius, _CELL, (width, height))
-            cols[f"rate_{name}"] = np.log1p((count / area).ravel()[cid] * scale)
+            cols[f"rate_{name}"] = np.log1p((count / area).ravel() * scale)[cid]
             if name != "128":
                 signed = _box(signed_cell, radius) if radius else signed_cell
                 cols[f"balance_{name}"] = (signed / np.maximum(count, 1.0)).ravel()[cid]
@@ -267,9 +271,19 @@ def window_features(
     if "since_pixel" in need:
         cols["since_pixel"] = np.log1p(_since_pixel(ev, width, height, window_us) / 1000.0)
     if "centre_distance" in need:
-        half = 0.5 * np.hypot(width, height)
-        cols["centre_distance"] = np.hypot(x + 0.5 - width / 2, y + 0.5 - height / 2) / half
-    out = np.empty((n, len(names)), np.float32)
+        cols["centre_distance"] = _centre_distance(width, height)[pixel]
+    # one feature per row while filling (contiguous writes), returned as (n, F)
+    out = np.empty((len(names), n), np.float32)
     for k, name in enumerate(names):
-        out[:, k] = cols[name]
-    return out
+        out[k] = cols[name]
+    return out.T
+
+
+@functools.lru_cache(maxsize=4)
+def _centre_distance(width: int, height: int) -> np.ndarray:
+    """Each pixel's distance from the sensor's centre over half its diagonal (flat)."""
+    yy, xx = np.mgrid[:height, :width]
+    half = 0.5 * np.hypot(width, height)
+    grid = np.hypot(xx + 0.5 - width / 2, yy + 0.5 - height / 2) / half
+    grid.flags.writeable = False
+    return grid.ravel()

