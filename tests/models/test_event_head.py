@@ -328,6 +328,34 @@ def test_the_scene_alone_is_learned_from_with_every_event_kept(tmp_path, rng):
     assert (got["source"] == 0).all()
 
 
+def test_the_flare_free_recording_is_learned_from_with_every_event_kept(tmp_path, rng):
+    from edeflare.models.head_training import FLARE_FREE_SOURCE, _group, collect_features
+
+    scene = random_events(rng, 400, (32, 24), t0=0, span_us=40_000)
+    flare = random_events(rng, 300, (32, 24), t0=0, span_us=40_000)
+    inp = np.sort(np.concatenate([scene, flare]), order="t", kind="stable")
+    paths = [tmp_path / "a" / "test" / "p0.h5", tmp_path / "a" / "test" / "p1.h5"]
+    for path in paths:  # no background stream: the ground truth is the clean twin
+        write_dsec_groups(path, {"input": inp, "gt": scene}, (32, 24))
+
+    def logits(batch, size):
+        return [np.zeros(ev.size, np.float32) for _, ev in batch]
+
+    config = HeadTrainingConfig(features=("polarity",), val_per_window=10_000)
+    on = dataclasses.replace(config, flare_free_windows=True)
+    got = collect_features(paths, logits, 20_000, on, balanced=False, progress=False)
+    for k in (0, 1):
+        pair, twin = got["source"] == k, got["source"] == FLARE_FREE_SOURCE - k
+        assert pair.sum() == inp.size and twin.sum() == scene.size
+        assert got["y"][twin].all() and got["y"][pair].sum() == scene.size
+    files = [str(p) for p in paths]
+    assert [_group(files, s) for s in (1, -1, -2, FLARE_FREE_SOURCE - 1)] == [
+        "a", "scene without a light", "scene without a light", "flare-free recording"
+    ]  # fmt: skip
+    got = collect_features(paths, logits, 20_000, config, balanced=False, progress=False)
+    assert set(got["source"].tolist()) == {0, 1}  # off by default
+
+
 def test_a_model_with_a_head_is_bundled_with_its_tensors_unchanged(tmp_path):
     from edeflare.models.bundle import bundle_weights
     from edeflare.models.weights import read_tensors

@@ -59,6 +59,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument(
         "--per-window", type=int, default=2000, help="training events drawn per window and class"
     )
+    p.add_argument(
+        "--flare-free-windows",
+        action="store_true",
+        help="also learn from each pair's ground truth alone, every event kept (a flare-free "
+        "recording of the same scene)",
+    )
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--seed", type=int, default=0)
@@ -89,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
         features=features,
         hidden=tuple(args.hidden),
         per_window=args.per_window,
+        flare_free_windows=args.flare_free_windows,
         epochs=args.epochs,
         lr=args.lr,
         seed=args.seed,

@@ -127,6 +127,9 @@ class HeadTrainingConfig:
     light_free_windows: bool = True
     """Also learn from the windows of the scene alone (a pair's ``background`` stream,
     where the simulator stored it), every event kept: a recording without a light."""
+    flare_free_windows: bool = False
+    """Also learn from the windows of each pair's ground truth alone, every event kept: a
+    flare-free recording of the same scene, its light included (every pair has one)."""
     epochs: int = 8
     batch_size: int = 4_096
     lr: float = 3e-3
@@ -170,6 +173,8 @@ def collect_features(
         scene = _component(path, "background") if config.light_free_windows else None
         if scene is not None:  # the scene alone, as a recording without a light sees it
             streams.append((scene, np.ones(scene.size, bool), -1 - k))
+        if config.flare_free_windows:  # the clean lens's recording of the same scene
+            streams.append((gt, np.ones(gt.size, bool), FLARE_FREE_SOURCE - k))
         for events, truth, source in streams:
             for s, part in _windows(events, start, end, window_us):
                 ev = events[part]
@@ -203,6 +208,14 @@ def _component(path: Path, group: str) -> np.ndarray | None:
             return None
     with DsecReader(path, group=f"{group}/events") as reader:
         return reader.read()
+
+
+def _group(files: Sequence[str], source: int) -> str:
+    """The validation group of a row: its dataset (a mix's part), the scene without a
+    light, or the flare-free recordings."""
+    if source >= 0:
+        return Path(files[source]).parent.parent.name
+    return "flare-free recording" if source <= FLARE_FREE_SOURCE else "scene without a light"
 
 
 def _draw(rng: np.random.Generator, idx: np.ndarray, n: int) -> np.ndarray:
@@ -283,15 +296,21 @@ def choose_threshold(
 
 
 _FEATURE_FIELDS = ("features", "per_window", "val_per_window", "tolerance_us",
-                   "light_free_windows", "seed")  # fmt: skip
+                   "light_free_windows", "flare_free_windows", "seed")  # fmt: skip
 """The config fields the collected features depend on (not the fit's: a head of another
 size or schedule reuses a run's features)."""
+
+FLARE_FREE_SOURCE = -1_000_001
+"""The ``source`` of rows drawn from a pair's ground truth alone: this minus the file's
+index (the scene alone's rows are ``-1 - index``; a pair's own rows, the index)."""
 
 
 def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kind: str) -> str:
     h = hashlib.sha256()
     h.update(file_sha256(base).encode())
     fields = {k: v for k, v in dataclasses.asdict(config).items() if k in _FEATURE_FIELDS}
+    if not fields["flare_free_windows"]:  # runs from before the option keep their features
+        del fields["flare_free_windows"]
     h.update(json.dumps([fields, kind, "gt|light"], sort_keys=True).encode())
     for f in files:
         h.update(f"{f.parent.parent.name}/{f.parent.name}/{f.name}:{f.stat().st_size}".encode())
@@ -354,12 +373,7 @@ def train_head(
     train, val = sets["train"], sets["test"]
     head = fit_head(train["x"], train["y"], config, progress=progress)
     val_files = summary_files["test"]
-    groups = np.array(
-        [
-            Path(val_files[i]).parent.parent.name if i >= 0 else "scene without a light"
-            for i in val["source"]
-        ]
-    )
+    groups = np.array([_group(val_files, int(i)) for i in val["source"]])
     logits = head_logits(head.numpy_params(), val["x"])
     threshold, table = choose_threshold(logits, val["y"], groups)
     net.head = head
