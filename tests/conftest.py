@@ -152,8 +152,8 @@ def kill_at_random_moments(
 
     ``argv`` names ``out``; a straight run into ``reference`` (same arguments, the
     output swapped) sets the clock: each kill lands at a uniform random moment of
-    the first three quarters of its wall time, start-up included; the run's pool workers (if any) are given
-    10 s to notice and stop. After every kill nothing may sit under the
+    the first three quarters of its wall time, start-up included; the run's pool
+    workers (if any) are given 10 s to notice and stop. After every kill nothing may sit under the
     output's name but complete files equal to the reference's, and a rerun
     must give the reference's bytes exactly (temporary files included: none).
 
