@@ -139,6 +139,9 @@ def test_light_response_of_a_moving_disc_and_none_for_a_still_one():
     assert light_response(ev, track, quantile=0.4).response_us == 300  # 250, rounded up
     still = LightSource.track([[0, 40, 20, 4], [60_000, 41, 20, 4]])
     assert light_response(ev, still).response_us is None
+    # a detected lamp's track jitters by a pixel: a long path, but it stays put
+    jitter = LightSource.track([[k * 1_000, 40 + k % 2, 20 - k % 2, 4] for k in range(61)])
+    assert light_response(ev, jitter).response_us is None
     assert light_response(ev, LightSource.circle(40, 20, 4)).response_us is None
 
 

@@ -23,6 +23,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -96,8 +97,8 @@ def light_response(
     Returns
     -------
     LightResponse
-        ``response_us`` None for a light that moves less than its diameter, or where
-        no pixel qualifies.
+        ``response_us`` None for a light whose path spans less than its diameter
+        (however long a jittering track is), or where no pixel qualifies.
     """
     check_events(events)
     table = source.table[np.isfinite(source.table[:, 1])]
@@ -110,8 +111,10 @@ def light_response(
     ok = np.isfinite(tx)
     tt, tx, ty = tt[ok], tx[ok], ty[ok]
     path = float(np.hypot(np.diff(tx), np.diff(ty)).sum())
-    if path < 2 * r or tt[-1] <= tt[0]:
-        return none  # a light that stays where it is: its pixels never see it leave
+    if math.hypot(np.ptp(tx), np.ptp(ty)) < 2 * r or tt[-1] <= tt[0]:
+        # a light that stays where it is (a detected lamp's track only jitters): its
+        # pixels never see it leave
+        return none
     speed = path / float(tt[-1] - tt[0])  # px/us
     t = events["t"].astype(np.int64)
     width = int(events["x"].max()) + 1
