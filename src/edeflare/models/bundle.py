@@ -199,16 +199,9 @@ def _checked(name: str, value: Any, hint: Any) -> Any:
 def _check_fits(path: Path, tensors: dict[str, torch.Tensor], key: str, card: dict) -> None:
     """Raise unless ``tensors`` are exactly those of the model ``card`` describes."""
     if key == _MODEL_KEY:
-        from . import create_model
-        from .event_head import EventHead
+        from .weights import card_model
 
-        try:
-            model = create_model(card["preset"])
-        except ValueError as exc:
-            raise WeightsError(f"{path}: {exc}") from None
-        if card.get("head"):  # a learned keep head rides with the network
-            model.head = EventHead(**card["head"])
-        expected = model.state_dict()
+        expected = card_model(path, card["preset"], card.get("head")).state_dict()
         what = f"preset {card['preset']!r}" + (" with its keep head" if card.get("head") else "")
     else:
         from ..recon.network import FireNet

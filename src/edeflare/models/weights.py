@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -260,18 +261,25 @@ def init_from(model: nn.Module, path: str | os.PathLike[str]) -> list[str]:
     return sorted(set(expected) - set(tensors))
 
 
+def card_model(path: Path, preset: str, head: Mapping[str, Any] | None) -> nn.Module:
+    """A fresh model of a card's ``preset``, with its learned keep ``head`` (if any) as
+    the submodule ``head``: the module whose tensors ``path`` must hold."""
+    try:
+        model = create_model(preset)
+    except ValueError as exc:
+        raise WeightsError(f"{path}: {exc}") from None
+    if head:  # the learned keep head rides with the network, as its submodule
+        model.head = EventHead(**head)
+    return model
+
+
 def load_model(
     path: str | os.PathLike[str], device: str | torch.device = "cpu"
 ) -> tuple[nn.Module, ModelCard]:
     """Build the card's preset and load the weights into it: ``(model in eval mode, card)``."""
     path = Path(path)
     card = read_card(path)
-    try:
-        model = create_model(card.preset)
-    except ValueError as exc:
-        raise WeightsError(f"{path}: {exc}") from None
-    if card.head:  # the learned keep head rides with the network, as its submodule
-        model.head = EventHead(**card.head)
+    model = card_model(path, card.preset, card.head)
     tensors = read_tensors(path)
     expected = model.state_dict()
     missing = sorted(set(expected) - set(tensors))
