@@ -30,7 +30,7 @@ I/O floor), EFR, PFD-A, PFD-B, and dv-processing's FastDecay where installed.
 Each case runs ``--repeat`` times (default 2) in fresh processes and the fastest run is
 kept (the shared machine's noise only ever adds time).
 
-Run: ``python benchmarks/bench_realtime.py [--quick] [--repeat N]``
+Run: ``python benchmarks/bench_realtime.py [--quick] [--repeat N] [--only-street]``
 """
 
 from __future__ import annotations
@@ -42,7 +42,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _common import PEAK_MIB, random_events, report
+import numpy as np
+from _common import PEAK_MIB, REAL, random_events, report
 
 _CHILD = (
     PEAK_MIB
@@ -54,6 +55,7 @@ src, dst, method, params = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys
 m = create_method(method, **params)
 stats = deflare_file(src, dst, m, progress=False)
 print(json.dumps({"total_s": time.perf_counter() - t0, "seconds": stats.seconds,
+                  "events_in": stats.events_in,
                   "span_s": stats.span_us / 1e6, "latency_ms": stats.latency_ms,
                   "peak_rss_mib": peak_mib()}))
 """
@@ -85,14 +87,42 @@ def _weights(tmp: Path, preset: str) -> str:
     return str(path)
 
 
+_STREET = "prophesee_gen41_street.raw"
+_STREET_SPAN_US = 180_000
+
+
+def _tiled_street(dst: Path) -> tuple[int, int] | None:
+    """The Gen4.1 street tiled in time to 0.18 s, written to ``dst``; its sensor size, or
+    None where ../shared/data/real is absent."""
+    from edeflare.events import concat_events
+    from edeflare.io import read_events, write_events
+
+    if not (REAL / _STREET).is_file():
+        return None
+    rec = read_events(REAL / _STREET)
+    t = rec.events["t"].astype(np.int64) - int(rec.events["t"][0])
+    span = int(t[-1]) + 1
+    tiles = []
+    for k in range(-(-_STREET_SPAN_US // span)):
+        tile = rec.events.copy()
+        tile["t"] = t + k * span
+        tiles.append(tile)
+    tiled = concat_events(tiles)
+    write_events(dst, tiled[tiled["t"] < _STREET_SPAN_US], rec.sensor_size)
+    return rec.sensor_size
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="640x480 at 1 M ev/s only")
     parser.add_argument("--repeat", type=int, default=2, help="runs per case; the fastest is kept")
+    parser.add_argument(
+        "--only-street", action="store_true", help="the tiled Gen4.1 street case alone"
+    )
     args = parser.parse_args()
     from edeflare.io import write_events
 
-    cases = (
+    synthetic = (
         [((640, 480), 1_000_000)]
         if args.quick
         else [
@@ -123,11 +153,28 @@ def main() -> None:
             )
         ]
         methods += [(m, m, {}) for m in ("raw", "efr", "pfd-a", "pfd-b", "dv-fastdecay")]
-        for size, rate in cases:
-            src = tmp / f"in_{size[0]}_{rate}.h5"
-            write_events(src, random_events(rate, size, 0, 1_000_000, seed=1), size)
+        cases: list[tuple[Path, tuple[int, int], str, list[tuple[str, str, dict[str, str]]]]] = []
+        if not args.only_street:
+            for size, rate in synthetic:
+                src = tmp / f"in_{size[0]}_{rate}.h5"
+                write_events(src, random_events(rate, size, 0, 1_000_000, seed=1), size)
+                cases.append((src, size, f"{rate / 1e6:g}", methods))
+        street = tmp / "gen41_street_tiled.h5"
+        street_size = None if args.quick else _tiled_street(street)
+        if street_size is not None:
+            dense = [
+                (f"model {p} (onnx)", "model", {"weights": w, "runtime": "onnx"})
+                for p, w in (("mask.pixel", models["mask.pixel"]), ("general", "general"))
+            ]
+            one_view = {**dense[0][2], "phase_shift_us": 0}
+            dense.insert(1, ("model mask.pixel (onnx, one view)", "model", one_view))
+            dense += [(m, m, {}) for m in ("raw", "pfd-a", "dv-fastdecay")]
+            cases.append((street, street_size, "Gen4.1 street x20", dense))
+        elif not args.quick:
+            print(f"skip the street case: no {REAL / _STREET}", file=sys.stderr)
+        for src, size, rate_label, case_methods in cases:
             ref = None
-            for label, method, params in methods:
+            for label, method, params in case_methods:
                 dst = tmp / "out.h5"
                 try:
                     runs = [
@@ -144,10 +191,11 @@ def main() -> None:
                 p50, p95, worst = r["latency_ms"]
                 row: dict[str, object] = {
                     "sensor": f"{size[0]}x{size[1]}",
-                    "Mev/s": rate / 1e6,
+                    "Mev/s": rate_label,
                     "method": label,
                     "rtf": r["seconds"] / r["span_s"],
                     "speedup": (ref / r["seconds"]) if ref else "",
+                    "throughput": r["events_in"] / r["seconds"] / 1e6,
                     "latency_ms": p50,
                     "p95_ms": p95,
                     "max_ms": worst,
@@ -165,6 +213,7 @@ def main() -> None:
             "method",
             "rtf",
             "speedup",
+            "throughput",
             "latency_ms",
             "p95_ms",
             "max_ms",

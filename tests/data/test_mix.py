@@ -63,6 +63,27 @@ def test_each_part_is_the_dataset_its_recipe_makes(reference, tmp_path):
         assert {"input", "gt", "gt_full", "flare"} <= set(f)  # eflare-night's own layout
 
 
+def test_the_gaps_mix_stores_the_scene_alone_beside_dense_and_dim_flare(tmp_path):
+    # eflare-gaps exists for what eflare-mix's files lack: the scene without the light
+    # (a "background" stream) under dense forward-model flare, and dim sparse streets
+    gaps = RECIPES["eflare-gaps"].replace(
+        sequences=1, test_sequences=0, sensor_size=(48, 36), duration_us=20_000
+    )
+    assert gaps.part_names == ("dense-640", "sparse-346")
+    assert RECIPES["eflare-gaps"].part("dense-640").sensor_size == (640, 480)
+    assert gaps.part("sparse-346").scene == RECIPES["eflare-night-sparse"].scene
+    generate_dataset(gaps, tmp_path, progress=False)
+    with h5py.File(tmp_path / "dense-640" / "train" / "seq_00000.h5") as f:
+        assert f.attrs["variant"] == "forward" and {"input", "gt", "background"} <= set(f)
+    with h5py.File(tmp_path / "sparse-346" / "train" / "seq_00000.h5") as f:
+        assert {"input", "gt", "background"} <= set(f)
+    # seeds no other recipe uses: its sequences are not eflare-mix's or a test set's
+    seeds = [r.seed for name in RECIPES.names() if name != "eflare-gaps"
+             for r in ([p for _, p in RECIPES[name].parts] if isinstance(RECIPES[name], Mix)
+                       else [RECIPES[name]])]  # fmt: skip
+    assert not {r.seed for _, r in RECIPES["eflare-gaps"].parts} & set(seeds)
+
+
 def test_shards_assemble_the_same_bytes(reference, tmp_path):
     out, _ = reference
     # shard i/3 makes the items at positions i, i + 3, ... of the mix's order

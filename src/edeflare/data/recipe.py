@@ -639,6 +639,38 @@ _MIX_PARTS = (
     ),
 )
 
+# eflare-gaps: what eflare-mix lacks, to train beside it (`edeflare train-head MIX GAPS`):
+# dense flare at 640x480 with the scene alone stored (eflare-mix's dense parts store input
+# and gt only, so no scene-alone windows of that size), and eflare-night-sparse's dim
+# night streets (backgrounds as sparse as the real recordings', with their background
+# activity), the scene alone stored too. Seeds no other recipe uses.
+_GAPS_PARTS = (
+    (
+        "dense-640",
+        Recipe(
+            name="eflare-gaps.dense-640",
+            sequences=30,
+            test_sequences=3,
+            sensor_size=(640, 480),
+            seed=206,
+            scene=_NIGHT_SCENE,
+            config=_FORWARD,
+        ),
+    ),
+    (
+        "sparse-346",
+        dataclasses.replace(
+            _NIGHT_RECIPE,
+            name="eflare-gaps.sparse-346",
+            sequences=30,
+            test_sequences=3,
+            seed=207,
+            scene=_SPARSE_NIGHT_SCENE,
+            config=FlareConfig(script=_SPARSE_NIGHT_SCRIPT, sensing=_SPARSE_NIGHT_SENSING),
+        ),
+    ),
+)
+
 RECIPES: Registry[Recipe | Mix] = Registry("recipe")
 for _recipe in (
     Recipe(name="eflare-2.7k"),
@@ -690,6 +722,7 @@ for _recipe in (
         config=_FORWARD_HD,
     ),
     Mix("eflare-mix", _MIX_PARTS),
+    Mix("eflare-gaps", _GAPS_PARTS),
 ):
     RECIPES.register(_recipe.name, _recipe)
 """Named recipes: the paper's E-Flare-2.7K (synthetic backgrounds unless files are given),
@@ -714,7 +747,9 @@ flare in five parts: ``night-346`` (eflare-night, 60), ``day-346`` (eflare-day-s
 ``dense-640`` (the forward model's dense flare, 28 at 640x480), ``dense-1280`` (the same at
 1280x720, 10) and ``sparse-1280`` (eflare-night at 1280x720, 10), each with test
 sequences and its own seed: about 1,300 core-seconds, 11-15 minutes with ``--workers 2``
-on 2 cores (the one-sequence times are in the comment above ``_MIX_PARTS``)."""
+on 2 cores (the one-sequence times are in the comment above ``_MIX_PARTS``); and the
+:class:`Mix` ``eflare-gaps``, to train beside it: ``dense-640`` (30, the scene alone stored)
+and ``sparse-346`` (eflare-night-sparse, 30)."""
 
 
 def list_recipes() -> list[str]:
@@ -724,7 +759,7 @@ def list_recipes() -> list[str]:
     --------
     >>> list_recipes()  # doctest: +NORMALIZE_WHITESPACE
     ['dsec-flare', 'eflare-2.7k', 'eflare-day-street', 'eflare-forward', 'eflare-forward-hd',
-     'eflare-mini', 'eflare-mix', 'eflare-night', 'eflare-night-sparse', 'eflare-r-sim',
-     'eflare-r-sim-mini']
+     'eflare-gaps', 'eflare-mini', 'eflare-mix', 'eflare-night', 'eflare-night-sparse',
+     'eflare-r-sim', 'eflare-r-sim-mini']
     """
     return RECIPES.names()
