@@ -250,11 +250,11 @@ def window_features(
     # the same numbers, a dense window holding far more events than pixels or cells.
     pixel = y * width + x
     if need & {"rate_pixel", "balance_pixel"}:
-        count = np.bincount(pixel, minlength=width * height)
-        signed = np.bincount(pixel, weights=sign, minlength=width * height)
-        cols["rate_pixel"] = np.log1p(count * scale)[pixel]
-        balance = np.divide(signed, count, out=np.zeros(count.size), where=count > 0)
-        cols["balance_pixel"] = balance[pixel]
+        # gathered first: a window's events touch far fewer pixels than the sensor has
+        count = np.bincount(pixel, minlength=width * height)[pixel]
+        signed = np.bincount(pixel, weights=sign, minlength=width * height)[pixel]
+        cols["rate_pixel"] = np.log1p(count * scale)
+        cols["balance_pixel"] = signed / count  # every event's pixel has one event at least
     h, w = -(-height // _CELL), -(-width // _CELL)
     cid = (y // _CELL) * w + x // _CELL
     if need & {"rate_8", "rate_32", "rate_128", "balance_8", "balance_32"}:
