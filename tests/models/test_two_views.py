@@ -46,6 +46,29 @@ def test_two_views_keep_where_the_mean_logit_passes_by_hand():
     assert starts == [-5_000, 0, 15_000, 20_000, 35_000]
 
 
+def test_numpy_blas_runs_one_thread_per_view_while_both_views_run():
+    from threadpoolctl import ThreadpoolController
+
+    blas = ThreadpoolController().select(user_api="blas")
+    if not blas.lib_controllers:
+        pytest.skip("numpy's BLAS cannot be limited here")
+    seen = []
+
+    def logits(batch):  # a head's matrix products run here, in both views' threads
+        seen.append({c["num_threads"] for c in blas.info()})
+        return [np.zeros(ev.size) for _, ev in batch]
+
+    t = np.arange(0, 40_000, 1_000)
+    ev = make_events(t, t % 7, t % 5, np.ones(t.size, int))
+    with blas.limit(limits=2):  # as on a 2-core machine, whatever this one has
+        s = TwoViewStreamer(20_000, 5_000, logits, cut=-1.0, batch_windows=1)
+        assert np.concatenate([s.process(ev, 40_000), s.flush()]).size == ev.size
+        after = {c["num_threads"] for c in blas.info()}
+    both = seen[:-1]  # the last batch (the flush) runs alone
+    assert both and all(v == {1} for v in both)
+    assert after == {2}  # restored once the views are done
+
+
 def test_two_views_emit_events_once_both_windows_are_done_and_chunks_change_nothing():
     t = np.arange(0, 40_000, 1_000)
     ev = make_events(t, t % 7, t % 5, np.ones(t.size, int))
