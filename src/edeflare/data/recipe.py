@@ -647,13 +647,12 @@ _MIX_PARTS = (
 _GAPS_PARTS = (
     (
         "dense-640",
-        Recipe(
+        dataclasses.replace(
+            dict(_MIX_PARTS)["dense-640"],
             name="eflare-gaps.dense-640",
             sequences=30,
             test_sequences=3,
-            sensor_size=(640, 480),
             seed=206,
-            scene=_NIGHT_SCENE,
             config=_FORWARD,
         ),
     ),
