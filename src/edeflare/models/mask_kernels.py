@@ -225,32 +225,89 @@ are the same; where most pixels fire once (a sparse 1280x720 window), the extra 
 over the pixels costs more than it saves."""
 
 
+_BAND_ROWS_LOG2 = 3
+"""The refinement visits a window's events band by band, each band this power of two of
+sensor rows (8), in time order within a band: the count frames' rows a band reads (12
+rows of each) stay in the core's cache instead of being read at random across the
+whole sensor. The values are the same; on a dense 1280x720 window of 500 k events the
+refinement costs a third less, sorting included."""
+
+
 @numba.njit(cache=True, nogil=True)
-def _ring_counts(x, y, p, on, total, rings, stride):  # pragma: no cover - compiled
-    """Count the events into the padded ``on`` and ``total``; where most of them repeat
-    a pixel, also each pixel's 3x3 and 5x5 squares' events into ``rings[2 pix]`` and
-    ``rings[2 pix + 1]``, once per pixel that fired.
+def _band_records(t, x, y, p, t0, window_us, bins, height):  # pragma: no cover
+    """The events' records ``(n, 4) int32`` in band order (a counting sort on
+    ``y >> _BAND_ROWS_LOG2``, stable): ``x``, ``y``, twice the logits' channel plus the
+    polarity (1 ON), the event's index in the window."""
+    bands = (np.int64(height) >> _BAND_ROWS_LOG2) + 1
+    first = np.zeros(bands + 1, np.int64)
+    for i in range(y.size):
+        first[(np.int64(y[i]) >> _BAND_ROWS_LOG2) + 1] += 1
+    for b in range(bands):
+        first[b + 1] += first[b]
+    rec = np.empty((y.size, 4), np.int32)
+    for i in range(y.size):
+        b = np.int64(y[i]) >> _BAND_ROWS_LOG2
+        k = first[b]
+        first[b] = k + 1
+        pol = np.int64(p[i] != 0)
+        rec[k, 0] = x[i]
+        rec[k, 1] = y[i]
+        rec[k, 2] = 2 * _channel(t[i], pol, t0, window_us, bins) + pol
+        rec[k, 3] = i
+    return rec
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _channel(t, pol, t0, window_us, bins):  # pragma: no cover - compiled
+    """The logits' channel of an event at time ``t`` of polarity ``pol`` (1 ON, 0 OFF)."""
+    return ((np.int64(t) - t0) * bins) // window_us + bins * (1 - pol)
+
+
+@numba.njit(cache=True, nogil=True)
+def _ring_counts(rec, on, total, rings, stride):  # pragma: no cover - compiled
+    """Count the records' events into the padded ``on`` and ``total``; where most of them
+    repeat a pixel, also each pixel's 3x3 and 5x5 squares' events into ``rings[2 pix]``
+    and ``rings[2 pix + 1]``, once per pixel that fired.
 
     A dense window's events repeat their pixels (84 % of the Gen3 light's do) and the
     squares depend on the pixel alone: summed once per pixel instead of once per event,
     the Gen3 light's refinement costs a third less. Returns the padded pixels that
     fired (to reset them) and whether ``rings`` holds their squares.
     """
-    pixels = np.empty(x.size, np.int64)
+    n_events = rec.shape[0]
+    pixels = np.empty(n_events, np.int64)
     n = 0
-    for i in range(x.size):
-        pix = _padded_pixel(x[i], y[i], stride)
+    for k in range(n_events):
+        pix = _padded_pixel(rec[k, 0], rec[k, 1], stride)
         if total[pix] == 0:
             pixels[n] = pix
             n += 1
         total[pix] += 1
-        on[pix] += p[i] != 0
-    memo = x.size - n >= _RING_MEMO_REPEATS * x.size
+        on[pix] += rec[k, 2] & 1
+    memo = n_events - n >= _RING_MEMO_REPEATS * n_events
     if memo:
         for k in range(n):
             pix = pixels[k]
             rings[2 * pix], rings[2 * pix + 1] = _rings_at(total, stride, pix)
     return pixels[:n], memo
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _bilinear(logits, c, x, y, scale):  # pragma: no cover - compiled
+    """``logits[c]`` sampled bilinearly at pixel ``(x, y)``'s centre, clipped to the cells."""
+    _, h, w = logits.shape
+    # align_corners=False: pixel centre x + 0.5 sits at (x + 0.5) / scale - 0.5 in cells
+    fx = min(max((x + 0.5) / scale - 0.5, 0.0), w - 1.0)
+    fy = min(max((y + 0.5) / scale - 0.5, 0.0), h - 1.0)
+    x0, y0 = np.int64(np.floor(fx)), np.int64(np.floor(fy))
+    x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+    ax, ay = fx - x0, fy - y0
+    return (
+        np.float64(logits[c, y0, x0]) * (1 - ax) * (1 - ay)
+        + np.float64(logits[c, y0, x1]) * ax * (1 - ay)
+        + np.float64(logits[c, y1, x0]) * (1 - ax) * ay
+        + np.float64(logits[c, y1, x1]) * ax * ay
+    )
 
 
 @numba.njit(cache=True, nogil=True)
@@ -267,6 +324,7 @@ def _event_logits(
     total,
     rings,
     stride,
+    height,
     w_in,
     b_in,
     gain,
@@ -278,58 +336,47 @@ def _event_logits(
     pixel centre, plus the refinement where ``w_in`` has rows (see event_keep_mask).
     Where ``w_in`` has rows and ``support`` is as long as the events, also each event's
     :func:`event_support` into it (the refinement's four counts, summed)."""
-    n_ch, h, w = logits.shape
-    bins = n_ch // 2
+    bins = logits.shape[0] // 2
     hidden = w_in.shape[0]
-    if hidden:
-        pixels, memo = _ring_counts(x, y, p, on, total, rings, stride)
+    out = np.empty(t.size, np.float64)
+    if not hidden:
+        for i in range(t.size):
+            pol = np.int64(p[i] != 0)
+            out[i] = _bilinear(logits, _channel(t[i], pol, t0, window_us, bins), x[i], y[i], scale)
+        return out
+    rec = _band_records(t, x, y, p, t0, window_us, bins, height)
+    pixels, memo = _ring_counts(rec, on, total, rings, stride)
     # the hidden units' inputs by feature (contiguous over the units: the first layer
     # vectorises), each unit's output summed in order after
     w_t = np.ascontiguousarray(w_in.T)
     unit = np.empty(hidden, np.float64)
     table = _log1p_table()
-    out = np.empty(t.size, np.float64)
-    for i in range(t.size):
-        b = ((np.int64(t[i]) - t0) * bins) // window_us
-        c = b + bins * (1 - np.int64(p[i] != 0))
-        # align_corners=False: pixel centre x + 0.5 sits at (x + 0.5) / scale - 0.5 in cells
-        fx = min(max((x[i] + 0.5) / scale - 0.5, 0.0), w - 1.0)
-        fy = min(max((y[i] + 0.5) / scale - 0.5, 0.0), h - 1.0)
-        x0, y0 = np.int64(np.floor(fx)), np.int64(np.floor(fy))
-        x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
-        ax, ay = fx - x0, fy - y0
-        v = (
-            np.float64(logits[c, y0, x0]) * (1 - ax) * (1 - ay)
-            + np.float64(logits[c, y0, x1]) * ax * (1 - ay)
-            + np.float64(logits[c, y1, x0]) * (1 - ax) * ay
-            + np.float64(logits[c, y1, x1]) * ax * ay
-        )
-        if hidden:
-            pix = _padded_pixel(x[i], y[i], stride)
-            here = np.int64(total[pix])
-            own = np.int64(on[pix]) if p[i] != 0 else here - on[pix]
-            if memo:
-                b3, b5 = np.int64(rings[2 * pix]), np.int64(rings[2 * pix + 1])
-            else:
-                b3, b5 = _rings_at(total, stride, pix)
-            f0, f1, f2, f3 = own, here - own, b3 - here, b5 - b3
-            if support.size:
-                support[i] = f0 + f1 + f2 + f3 - 1
-            g0, g1 = _log1p_count(f0, table), _log1p_count(f1, table)
-            g2, g3 = _log1p_count(f2, table), _log1p_count(f3, table)
-            for k in range(hidden):
-                a = g0 * w_t[0, k] + g1 * w_t[1, k] + g2 * w_t[2, k] + g3 * w_t[3, k]
-                a += b_in[k] + v * gain[k]
-                unit[k] = max(a, 0.0) * w_out[k]
-            delta = 0.0
-            for k in range(hidden):
-                delta += unit[k]
-            v = v + delta + b_out[0]
-        out[i] = v
-    if hidden:
-        for pix in pixels:
-            on[pix] = 0
-            total[pix] = 0
+    for k in range(rec.shape[0]):
+        cp, i = rec[k, 2], rec[k, 3]
+        v = _bilinear(logits, cp >> 1, rec[k, 0], rec[k, 1], scale)
+        pix = _padded_pixel(rec[k, 0], rec[k, 1], stride)
+        here = np.int64(total[pix])
+        own = np.int64(on[pix]) if cp & 1 else here - on[pix]
+        if memo:
+            b3, b5 = np.int64(rings[2 * pix]), np.int64(rings[2 * pix + 1])
+        else:
+            b3, b5 = _rings_at(total, stride, pix)
+        f0, f1, f2, f3 = own, here - own, b3 - here, b5 - b3
+        if support.size:
+            support[i] = f0 + f1 + f2 + f3 - 1
+        g0, g1 = _log1p_count(f0, table), _log1p_count(f1, table)
+        g2, g3 = _log1p_count(f2, table), _log1p_count(f3, table)
+        for q in range(hidden):
+            a = g0 * w_t[0, q] + g1 * w_t[1, q] + g2 * w_t[2, q] + g3 * w_t[3, q]
+            a += b_in[q] + v * gain[q]
+            unit[q] = max(a, 0.0) * w_out[q]
+        delta = 0.0
+        for q in range(hidden):
+            delta += unit[q]
+        out[i] = v + delta + b_out[0]
+    for pix in pixels:
+        on[pix] = 0
+        total[pix] = 0
     return out
 
 
@@ -456,6 +503,7 @@ def event_keep_logits(
         total,
         rings,
         width + 2 * _PAD,
+        height,
         w_in,
         b_in,
         gain,
