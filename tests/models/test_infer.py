@@ -230,6 +230,46 @@ def test_warm_up_changes_no_output(model, rng):
     assert 0 < sum(e.size for _, e in b) < events.size  # a real model, really deciding
 
 
+_COMPILED_AFTER_WARM_UP = r"""
+import sys, numba, numpy as np
+from edeflare.events import iter_time_windows, make_events
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+
+def signatures():
+    return {
+        f"{name}.{attr}": len(f.signatures)
+        for name, module in list(sys.modules.items()) if name.startswith("edeflare")
+        for attr, f in vars(module).items() if isinstance(f, numba.core.registry.CPUDispatcher)
+    }
+
+rng = np.random.default_rng(0)
+n = 4000
+ev = make_events(np.sort(rng.integers(0, 40_000, n)), rng.integers(0, 64, n),
+                 rng.integers(0, 48, n), rng.integers(0, 2, n))
+d = ModelDeflarer(bundled_weights("night"))
+streamer = d.streamer((64, 48))  # warms up
+before = signatures()
+streamer.process(ev, 40_000)
+streamer.flush()
+after = signatures()
+print({k: (before.get(k, 0), v) for k, v in after.items() if v != before.get(k, 0)})
+"""
+
+
+def test_warm_up_compiles_every_kernel_a_real_window_needs():
+    # a window's fields are strided views of the structured events; numba compiles a
+    # separate kernel for contiguous ones (one event's): a warm-up on single events
+    # left every kernel to compile inside the first real window (about 0.5 s)
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-c", _COMPILED_AFTER_WARM_UP], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "{}"
+
+
 def test_cuda_networks_run_in_full_precision_and_restore_the_flags():
     # On an H200, cuDNN's defaults moved the default model's logits by up to 6e-3 from
     # the CPU's, and 2-16 events of a real recording changed side of the threshold

@@ -138,8 +138,10 @@ class StreamRun:
         max_lag_us: int | None,
     ) -> None:
         self.streamer = method.streamer(sensor_size, rng=rng, prepared=prepared)
-        # load the stream check's compiled kernel now (start-up), not in the first window
-        check_events(np.zeros(1, dtype=EVENT_DTYPE))
+        # load the stream check's compiled kernel now (start-up), not in the first window;
+        # two events, as a window's fields are strided views (one event's are contiguous,
+        # which numba compiles separately)
+        check_events(np.zeros(2, dtype=EVENT_DTYPE))
         self.reorder = None if self.streamer.ordered else _Reorder(self.streamer, max_lag_us)
         self.n_in = 0
         self.first_t: int | None = None

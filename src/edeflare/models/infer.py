@@ -508,7 +508,9 @@ class ModelDeflarer:
             return
         batch = []
         for k in range(self.batch_windows):
-            ev = np.zeros(1, dtype=EVENT_DTYPE)  # one event at pixel (0, 0)
+            # two events at pixel (0, 0): a window's fields are strided views, and
+            # numba compiles its kernels separately for one event's contiguous ones
+            ev = np.zeros(2, dtype=EVENT_DTYPE)
             ev["t"] = k * self.window_us
             batch.append((k * self.window_us, ev))
         for _ in self.windows(batch, sensor_size):
