@@ -163,6 +163,41 @@ def test_event_logits_equal_the_dense_paths_whether_pixels_repeat_or_not(side):
         fm.event_keep_logits(coarse[0].numpy(), ev, 0, 20_000, 8, support=np.zeros(3, np.int64))
 
 
+def test_records_are_the_events_in_bands_of_rows_and_serve_both_kernels():
+    size = (40, 37)  # a height that is no multiple of the bands' 8 rows
+    rng = np.random.default_rng(4)
+    n = 3000
+    ev = make_events(
+        np.sort(rng.integers(0, 20_000, n)), rng.integers(0, 40, n), rng.integers(0, 37, n),
+        rng.integers(0, 2, n),
+    )  # fmt: skip
+    rec = fm.event_records(ev, 0, 20_000, 8, size)
+    order = rec[:, 3]
+    assert sorted(order.tolist()) == list(range(n))  # every event once
+    band = ev["y"][order] // 8
+    assert (np.diff(band) >= 0).all()  # band by band
+    assert all((np.diff(order[band == b]) > 0).all() for b in range(5))  # in time order
+    np.testing.assert_array_equal(rec[:, 0], ev["x"][order])
+    np.testing.assert_array_equal(rec[:, 1], ev["y"][order])
+    channel = ev["t"] * 8 // 20_000 + 8 * (1 - ev["p"].astype(np.int64))
+    np.testing.assert_array_equal(rec[:, 2], 2 * channel[order] + ev["p"][order])
+    # given or made inside, the same features and logits
+    net = _pixel_net(5)
+    feats = fm.event_features(ev, size, 0, 20_000, 8, 8)
+    np.testing.assert_array_equal(fm.event_features(ev, size, 0, 20_000, 8, 8, records=rec), feats)
+    with torch.no_grad():
+        coarse = net.logits(torch.from_numpy(feats)[None])[0].numpy()
+    kw = {"pixel_params": net.pixel_params(), "sensor_size": size}
+    np.testing.assert_array_equal(
+        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=rec, **kw),
+        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, **kw),
+    )
+    with pytest.raises(ValueError, match="3000 event_records"):
+        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=rec[1:], **kw)
+    with pytest.raises(ValueError, match="outside the window"):
+        fm.event_records(ev, 0, 10_000, 8, size)
+
+
 def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():
     from edeflare.models.mask_kernels import event_pixel_features
 

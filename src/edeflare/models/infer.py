@@ -50,7 +50,12 @@ from .event_features import window_features
 from .event_head import EventHead, head_logits
 from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet
-from .mask_kernels import event_features, event_keep_logits, keep_logit_threshold
+from .mask_kernels import (
+    event_features,
+    event_keep_logits,
+    event_records,
+    keep_logit_threshold,
+)
 from .two_view import TwoViewStreamer, check_phase_shift
 from .weights import ModelCard, load_model
 
@@ -430,8 +435,13 @@ class ModelDeflarer:
         if not isinstance(net, FlareMaskNet):
             raise EdeflareError("per-event keep logits need a mask model (a mask.* preset)")
         w, scale = self.window_us, net.scale
+        # each window's events sorted once for both kernels
+        records = [event_records(ev, s, w, net.bins, sensor_size) for s, ev in batch]
         feats = np.stack(
-            [event_features(ev, sensor_size, s, w, net.bins, scale) for s, ev in batch]
+            [
+                event_features(ev, sensor_size, s, w, net.bins, scale, records=r)
+                for (s, ev), r in zip(batch, records, strict=True)
+            ]
         )
         logits = self._network(feats, sensor_size, True)
         # each event's support, for the light-free rule and the head: free with the
@@ -442,9 +452,11 @@ class ModelDeflarer:
         out = [
             event_keep_logits(
                 lg, events, start, w, scale, pixel_params=self.pixel_params,
-                sensor_size=sensor_size, support=support,
+                sensor_size=sensor_size, support=support, records=r,
             )
-            for (start, events), lg, support in zip(batch, logits, supports, strict=True)
+            for (start, events), lg, support, r in zip(
+                batch, logits, supports, records, strict=True
+            )
         ]  # fmt: skip
         if not self.rules.active and head is None:
             return out

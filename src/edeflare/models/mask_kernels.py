@@ -20,6 +20,7 @@ __all__ = [
     "event_keep_logits",
     "event_keep_mask",
     "event_pixel_features",
+    "event_records",
     "event_support",
     "keep_logit_threshold",
 ]
@@ -32,12 +33,15 @@ def event_features(
     window_us: int,
     bins: int,
     scale: int,
+    *,
+    records: np.ndarray | None = None,
 ) -> np.ndarray:
     """The features of :meth:`FlareMaskNet.features`, straight from events (float32).
 
     Equal to ``net.features(encode(...))`` where no cell holds ON and OFF events
     of one pixel and bin that cancel (the voxel grid is signed; the event counts
-    are not), which is what real windows mostly look like.
+    are not), which is what real windows mostly look like. ``records``, the
+    window's :func:`event_records` at these ``bins`` if already made, saves making them.
 
     Examples
     --------
@@ -49,16 +53,50 @@ def event_features(
     """
     width, height = int(sensor_size[0]), int(sensor_size[1])
     h, w = -(-height // scale), -(-width // scale)
-    _check_inside(events, window_start_us, window_us, width, height)
+    if records is None:
+        records = event_records(events, window_start_us, window_us, bins, sensor_size)
     seen = _frames(width, height)[2]
-    counts = _cell_counts(
-        events["t"], events["x"], events["y"], events["p"], int(window_start_us), int(window_us),
-        int(bins), int(scale), h, w, seen, width,
-    )  # fmt: skip
+    counts = _cell_counts(records, int(bins), int(scale), h, w, seen, width)
     feats = counts.astype(np.float64)
     feats[:-1] = np.log1p(feats[:-1])
     feats[-1] /= float(scale * scale)
     return feats.astype(np.float32)
+
+
+def event_records(
+    events: np.ndarray,
+    window_start_us: int,
+    window_us: int,
+    bins: int,
+    sensor_size: tuple[int, int] | None = None,
+) -> np.ndarray:
+    """A window's events as the kernels read them: ``(n, 4) int32`` records in bands of
+    8 sensor rows, in time order within a band.
+
+    Each record holds ``x``, ``y``, twice the event's time bin and polarity channel
+    (``bin + bins * (1 - polarity)``, the network's output channel) plus its polarity,
+    and the event's index in the window. Made once per window, they serve both
+    :func:`event_features` and :func:`event_keep_logits`. The events must lie in the
+    window and, given ``sensor_size``, on the sensor.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([0, 5, 15], [0, 1, 5], [9, 2, 3], [1, 0, 1])
+    >>> event_records(ev, 0, 20, bins=2, sensor_size=(8, 12)).tolist()  # rows 2, 3 then 9
+    [[1, 2, 4, 1], [5, 3, 3, 2], [0, 9, 1, 0]]
+    """
+    if sensor_size is None:
+        bounds = (1 << 31, 1 << 31)
+        height = int(events["y"].max()) + 1 if events.size else 1
+    else:
+        bounds = (int(sensor_size[0]), int(sensor_size[1]))
+        height = bounds[1]
+    _check_inside(events, window_start_us, window_us, *bounds)
+    return _band_records(
+        events["t"], events["x"], events["y"], events["p"], int(window_start_us),
+        int(window_us), int(bins), height,
+    )  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)
@@ -86,25 +124,22 @@ def _check_inside(
 
 
 @numba.njit(cache=True, nogil=True)
-def _cell_counts(
-    t, x, y, p, t0, window_us, bins, scale, h, w, seen, width
-):  # pragma: no cover - compiled
-    """Events per (polarity, bin, cell), then pixels that fired per cell ``(2 bins + 1, h, w)``.
+def _cell_counts(rec, bins, scale, h, w, seen, width):  # pragma: no cover - compiled
+    """Events per (polarity, bin, cell), then pixels that fired per cell ``(2 bins + 1, h, w)``,
+    from the window's records (:func:`event_records`).
 
-    ``seen`` is a zeroed ``uint8`` frame of the sensor's pixels (small: it stays in
-    cache), left zeroed.
+    ``seen`` is a zeroed ``uint8`` frame of the sensor's pixels, left zeroed.
     """
     out = np.zeros((2 * bins + 1, h, w), np.int32)
-    for i in range(t.size):
-        b = ((np.int64(t[i]) - t0) * bins) // window_us
-        c = b + bins * (1 - np.int64(p[i] != 0))
-        cy, cx = np.int64(y[i]) // scale, np.int64(x[i]) // scale
-        out[c, cy, cx] += 1
-        pix = np.int64(y[i]) * width + x[i]
+    for k in range(rec.shape[0]):
+        x, y = np.int64(rec[k, 0]), np.int64(rec[k, 1])
+        cy, cx = y // scale, x // scale
+        out[rec[k, 2] >> 1, cy, cx] += 1
+        pix = y * width + x
         out[2 * bins, cy, cx] += 1 - seen[pix]
         seen[pix] = 1
-    for i in range(t.size):
-        seen[np.int64(y[i]) * width + x[i]] = 0
+    for k in range(rec.shape[0]):
+        seen[np.int64(rec[k, 1]) * width + rec[k, 0]] = 0
     return out
 
 
@@ -226,11 +261,11 @@ over the pixels costs more than it saves."""
 
 
 _BAND_ROWS_LOG2 = 3
-"""The refinement visits a window's events band by band, each band this power of two of
-sensor rows (8), in time order within a band: the count frames' rows a band reads (12
-rows of each) stay in the core's cache instead of being read at random across the
-whole sensor. The values are the same; on a dense 1280x720 window of 500 k events the
-refinement costs a third less, sorting included."""
+"""The kernels visit a window's events band by band (:func:`event_records`), each band
+this power of two of sensor rows (8), in time order within a band: the frames' rows a
+band reads (12 rows of the counts) stay in the core's cache instead of being read at
+random across the whole sensor. The values are the same; on a dense 1280x720 window of
+500 k events the refinement costs a third less, sorting included."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -252,15 +287,10 @@ def _band_records(t, x, y, p, t0, window_us, bins, height):  # pragma: no cover
         pol = np.int64(p[i] != 0)
         rec[k, 0] = x[i]
         rec[k, 1] = y[i]
-        rec[k, 2] = 2 * _channel(t[i], pol, t0, window_us, bins) + pol
+        channel = ((np.int64(t[i]) - t0) * bins) // window_us + bins * (1 - pol)
+        rec[k, 2] = 2 * channel + pol
         rec[k, 3] = i
     return rec
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _channel(t, pol, t0, window_us, bins):  # pragma: no cover - compiled
-    """The logits' channel of an event at time ``t`` of polarity ``pol`` (1 ON, 0 OFF)."""
-    return ((np.int64(t) - t0) * bins) // window_us + bins * (1 - pol)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -312,39 +342,19 @@ def _bilinear(logits, c, x, y, scale):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _event_logits(
-    t,
-    x,
-    y,
-    p,
-    logits,
-    t0,
-    window_us,
-    scale,
-    on,
-    total,
-    rings,
-    stride,
-    height,
-    w_in,
-    b_in,
-    gain,
-    w_out,
-    b_out,
-    support,
+    rec, logits, scale, on, total, rings, stride, w_in, b_in, gain, w_out, b_out, support
 ):  # pragma: no cover - compiled
-    """Each event's keep logit: the bilinear sample of ``logits (2 bins, h, w)`` at its
-    pixel centre, plus the refinement where ``w_in`` has rows (see event_keep_mask).
-    Where ``w_in`` has rows and ``support`` is as long as the events, also each event's
-    :func:`event_support` into it (the refinement's four counts, summed)."""
-    bins = logits.shape[0] // 2
+    """Each event's keep logit from the window's records (:func:`event_records`): the
+    bilinear sample of ``logits (2 bins, h, w)`` at its pixel centre, plus the
+    refinement where ``w_in`` has rows (see event_keep_mask). Where ``w_in`` has rows
+    and ``support`` is as long as the events, also each event's :func:`event_support`
+    into it (the refinement's four counts, summed)."""
     hidden = w_in.shape[0]
-    out = np.empty(t.size, np.float64)
+    out = np.empty(rec.shape[0], np.float64)
     if not hidden:
-        for i in range(t.size):
-            pol = np.int64(p[i] != 0)
-            out[i] = _bilinear(logits, _channel(t[i], pol, t0, window_us, bins), x[i], y[i], scale)
+        for k in range(rec.shape[0]):
+            out[rec[k, 3]] = _bilinear(logits, rec[k, 2] >> 1, rec[k, 0], rec[k, 1], scale)
         return out
-    rec = _band_records(t, x, y, p, t0, window_us, bins, height)
     pixels, memo = _ring_counts(rec, on, total, rings, stride)
     # the hidden units' inputs by feature (contiguous over the units: the first layer
     # vectorises), each unit's output summed in order after
@@ -449,6 +459,7 @@ def event_keep_logits(
     pixel_params: dict[str, np.ndarray] | None = None,
     sensor_size: tuple[int, int] | None = None,
     support: np.ndarray | None = None,
+    records: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per-event keep logits (float64) from low-resolution logits ``(2 bins, h, w)``.
 
@@ -458,6 +469,8 @@ def event_keep_logits(
     The window may start anywhere (it need not be aligned). ``support``, an
     ``int64`` array as long as the events, receives :func:`event_support` (with the
     refinement, from the counts it makes anyway: no second pass over the window).
+    ``records``, the window's :func:`event_records` (at the logits' bins, checked on
+    the sensor) if already made, saves making them again.
 
     Examples
     --------
@@ -469,14 +482,14 @@ def event_keep_logits(
     """
     if pixel_params is None:
         on = total = rings = np.zeros(0, np.int32)
-        width = height = 0
+        width = 0
         w_in = np.zeros((0, 4))
         b_in = gain = w_out = b_out = np.zeros(1)
     else:
         if sensor_size is None:
             raise ValueError("the per-pixel refinement needs the sensor size")
-        width, height = int(sensor_size[0]), int(sensor_size[1])
-        on, total, _, rings = _frames(width, height)
+        width = int(sensor_size[0])
+        on, total, _, rings = _frames(width, int(sensor_size[1]))
         w_in, b_in, gain, w_out, b_out = (
             np.ascontiguousarray(pixel_params[k], dtype=np.float64)
             for k in ("w_in", "b_in", "gain", "w_out", "b_out")
@@ -487,23 +500,22 @@ def event_keep_logits(
         if sensor_size is None:
             raise ValueError("the events' support needs the sensor size")
         support[:] = event_support(events, sensor_size)
-    # the refinement counts into sensor-sized frames; the logits are sampled clipped
-    bounds = (width, height) if pixel_params is not None else (1 << 31, 1 << 31)
-    _check_inside(events, window_start_us, window_us, *bounds)
+    if records is None:
+        # the refinement counts into sensor-sized frames; the logits are sampled clipped
+        records = event_records(
+            events, window_start_us, window_us, logits.shape[0] // 2,
+            sensor_size if pixel_params is not None else None,
+        )  # fmt: skip
+    elif records.shape != (events.size, 4):
+        raise ValueError(f"records must be the window's {events.size} event_records")
     return _event_logits(
-        events["t"],
-        events["x"],
-        events["y"],
-        events["p"],
+        records,
         np.ascontiguousarray(logits, dtype=np.float32),
-        int(window_start_us),
-        int(window_us),
         int(scale),
         on,
         total,
         rings,
         width + 2 * _PAD,
-        height,
         w_in,
         b_in,
         gain,
