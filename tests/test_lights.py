@@ -112,3 +112,26 @@ def test_a_lights_radius_comes_from_its_rings_even_at_the_frames_edge():
     ev = make_events(np.arange(5 * n), np.tile(xx[disc], 5), np.tile(yy[disc], 5),
                      np.ones(5 * n, int))  # fmt: skip
     assert light_radius(ev, (64, 48), LightSource.circle(30, 2, 3)) == 10.0
+
+
+def test_light_cells_count_each_cell_and_refuse_events_off_the_sensor():
+    from edeflare.events import make_events
+    from edeflare.lights.cells import _Coords, light_cells
+
+    rng = np.random.default_rng(3)
+    n = 5000
+    x, y = rng.integers(0, 30, n), rng.integers(0, 21, n)
+    ev = make_events(np.arange(n), x, y, np.ones(n))
+    # 4x4 cells of a 30x21 sensor: 8 x 6, the last column and row cut short
+    per_cell = np.zeros((6, 8), np.int64)
+    np.add.at(per_cell, (y // 4, x // 4), 1)
+    rate = 0.25 * 16 * 20_000 / 1000.0  # events per cell at LIGHT_RATE over 20 ms
+    got = light_cells(ev, (30, 21), 20_000, cell=4)
+    np.testing.assert_array_equal(got, per_cell >= rate)
+    assert 0 < got.sum() < got.size  # some cells are lights, some are not
+    per_pixel = np.zeros((21, 30), np.int64)
+    np.add.at(per_pixel, (y, x), 1)
+    np.testing.assert_array_equal(_Coords(ev, (30, 21), 4).counts, per_pixel)
+    for off in (make_events([0], [30], [0], [1]), make_events([0], [0], [21], [1])):
+        with pytest.raises(ValueError, match="outside the 30x21 sensor"):
+            light_cells(off, (30, 21), 20_000, cell=4)

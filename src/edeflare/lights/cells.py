@@ -10,6 +10,7 @@ every window; the recording-level detector is :func:`edeflare.lights.detect_ligh
 
 from __future__ import annotations
 
+import functools
 import threading
 
 import numba
@@ -50,16 +51,43 @@ _MARGIN_PX = 2.0  # pixels next to a light left out of its halo: its rim belongs
 
 
 class _Coords:
-    """The events' pixel coordinates, flat pixel and cell indices and the events per
-    pixel (``counts``, ``(height, width)``), computed once per window for every prior."""
+    """The events per pixel (``counts``, ``(height, width)``), and the events' pixel
+    coordinates, flat pixel and cell indices, each made once per window for every prior
+    and only when one asks (a window whose candidate cells hold no light needs only the
+    counts)."""
 
     def __init__(self, events: np.ndarray, sensor_size: tuple[int, int], cell: int) -> None:
         width, height = sensor_size
-        self.x, self.y = events["x"].astype(np.int64), events["y"].astype(np.int64)
+        self.events, self.width = events, width
         self.cell, self.w = cell, -(-width // cell)
-        self.cid = (self.y // cell) * self.w + self.x // cell
-        self.pixel = self.y * width + self.x
-        self.counts = np.bincount(self.pixel, minlength=width * height).reshape(height, width)
+        self.counts = _pixel_counts(events["x"], events["y"], width, height)
+
+    @functools.cached_property
+    def x(self) -> np.ndarray:
+        return self.events["x"].astype(np.int64)
+
+    @functools.cached_property
+    def y(self) -> np.ndarray:
+        return self.events["y"].astype(np.int64)
+
+    @functools.cached_property
+    def cid(self) -> np.ndarray:
+        return (self.y // self.cell) * self.w + self.x // self.cell
+
+    @functools.cached_property
+    def pixel(self) -> np.ndarray:
+        return self.y * self.width + self.x
+
+
+@numba.njit(cache=True, nogil=True)
+def _pixel_counts(x, y, width, height):  # pragma: no cover - compiled
+    """The events per pixel ``(height, width) int64``: ``np.bincount`` of the flat
+    pixels, without its temporaries and with the GIL released (the two views of a
+    stream run on two threads)."""
+    counts = np.zeros((height, width), np.int64)
+    for i in range(x.size):
+        counts[y[i], x[i]] += 1
+    return counts
 
 
 class _CellIndex:
@@ -391,8 +419,19 @@ def light_cells(
         raise ValueError(f"window_us must be positive, got {window_us}")
     if cell < 1:
         raise ValueError(f"cell must be >= 1, got {cell}")
+    if events.size and (int(events["x"].max()) >= width or int(events["y"].max()) >= height):
+        raise ValueError(f"events lie outside the {width}x{height} sensor")
     h, w = -(-height // cell), -(-width // cell)
-    counts = np.bincount(
-        (events["y"] // cell).astype(np.int64) * w + events["x"] // cell, minlength=h * w
-    ).reshape(h, w)
+    # the compiled counts (and the pixel counts of the lights after) index unchecked
+    counts = _cell_event_counts(events["x"], events["y"], cell, h, w)
     return counts >= LIGHT_RATE * cell * cell * window_us / 1000.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell_event_counts(x, y, cell, h, w):  # pragma: no cover - compiled
+    """The events per cell ``(h, w) int64``: a bincount of the cells, without its
+    temporaries and with the GIL released."""
+    counts = np.zeros((h, w), np.int64)
+    for i in range(x.size):
+        counts[y[i] // cell, x[i] // cell] += 1
+    return counts
