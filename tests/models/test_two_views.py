@@ -69,6 +69,31 @@ def test_numpy_blas_runs_one_thread_per_view_while_both_views_run():
     assert after == {2}  # restored once the views are done
 
 
+def test_the_second_view_runs_on_one_thread_for_the_whole_stream():
+    # the per-event kernels keep their frames per thread (16 MB at 1280x720): a thread
+    # per window zeroed fresh frames every window
+    import threading
+
+    threads = []
+
+    def logits(batch):
+        threads.append(threading.current_thread())
+        return [np.zeros(ev.size) for _, ev in batch]
+
+    t = np.arange(0, 100_000, 1_000)
+    ev = make_events(t, t % 7, t % 5, np.ones(t.size, int))
+    s = TwoViewStreamer(20_000, 5_000, logits, cut=-1.0, batch_windows=1)
+    out = [s.process(ev[(ev["t"] >= a) & (ev["t"] < a + 20_000)], a + 20_000)
+           for a in range(0, 100_000, 20_000)]  # fmt: skip
+    main = threading.current_thread()
+    second = {th for th in threads if th is not main}
+    assert len(threads) > 8 and len(second) == 1  # both views of each window, one helper
+    (helper,) = second
+    assert helper.is_alive()
+    assert np.concatenate([*out, s.flush()]).size == ev.size
+    assert not helper.is_alive()  # the flush ends the stream and its thread
+
+
 def test_two_views_emit_events_once_both_windows_are_done_and_chunks_change_nothing():
     t = np.arange(0, 40_000, 1_000)
     ev = make_events(t, t % 7, t % 5, np.ones(t.size, int))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import functools
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -91,6 +92,16 @@ class TwoViewStreamer(Streamer):
         self.pending = EMPTY  # events not yet emitted
         # per view, the logits of the first pending events (those whose window is done)
         self.done: list[np.ndarray] = [np.zeros(0), np.zeros(0)]
+        # the second view's thread, kept for the stream: the per-event kernels' frames
+        # are per thread (16 MB at 1280x720), and a new thread per window paid for
+        # zeroing fresh ones every window
+        self._pool: concurrent.futures.ThreadPoolExecutor | None = None
+
+    def _second_view_pool(self) -> concurrent.futures.ThreadPoolExecutor:
+        if self._pool is None:
+            self._pool = concurrent.futures.ThreadPoolExecutor(1, "edeflare-view")
+            weakref.finalize(self, self._pool.shutdown, wait=False)
+        return self._pool
 
     def _batches(self, view: int, until_us: int | None) -> list[list[tuple[int, np.ndarray]]]:
         """The view's complete windows not yet judged, in network batches."""
@@ -123,11 +134,8 @@ class TwoViewStreamer(Streamer):
             # own in each view, two per core: a head of 64 and 32 ran 1.5x slower on 2
             # cores. Limited from this thread alone, around both views (the products'
             # values do not depend on their thread count).
-            with (
-                _blas_threads().limit(limits=1),
-                concurrent.futures.ThreadPoolExecutor(1) as pool,
-            ):
-                second = pool.submit(self._judge, work[1])
+            with _blas_threads().limit(limits=1):
+                second = self._second_view_pool().submit(self._judge, work[1])
                 values = [self._judge(work[0]), second.result()]
         else:
             values = [self._judge(w) for w in work]
@@ -149,4 +157,7 @@ class TwoViewStreamer(Streamer):
 
     def flush(self) -> np.ndarray:
         self._advance(None)
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
         return self._emit()
