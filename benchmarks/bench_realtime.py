@@ -30,13 +30,19 @@ I/O floor), EFR, PFD-A, PFD-B, and dv-processing's FastDecay where installed.
 Each case runs ``--repeat`` times (default 2) in fresh processes and the fastest run is
 kept (the shared machine's noise only ever adds time).
 
-Run: ``python benchmarks/bench_realtime.py [--quick] [--repeat N] [--only-street]``
+``--baseline-src CHECKOUT`` adds a row per case for the bundled default of another
+checkout (``git worktree add /tmp/old COMMIT``), run from its own source in the same
+run: the comparable number on a machine whose speed drifts.
+
+Run: ``python benchmarks/bench_realtime.py [--quick] [--repeat N] [--only-street]
+[--baseline-src CHECKOUT]``
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -50,7 +56,10 @@ _CHILD = (
     + r"""
 import json, sys, time
 t0 = time.perf_counter()
-from edeflare.methods import create_method, deflare_file
+try:
+    from edeflare.methods import create_method, deflare_file
+except ImportError:  # a --baseline-src checkout from before edeflare.methods
+    from edeflare.deflare import create_method, deflare_file
 src, dst, method, params = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4])
 m = create_method(method, **params)
 stats = deflare_file(src, dst, m, progress=False)
@@ -62,11 +71,24 @@ print(json.dumps({"total_s": time.perf_counter() - t0, "seconds": stats.seconds,
 )
 
 
-def _run(code: str, *args: str) -> dict[str, float]:
+def _run(code: str, *args: str, src: str | None = None) -> dict[str, float]:
+    """Run a child; with ``src``, importing edeflare from that source folder instead."""
+    env = None if src is None else {**os.environ, "PYTHONPATH": src}
     out = subprocess.run(
-        [sys.executable, "-c", code, *args], capture_output=True, text=True, check=True
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, check=True, env=env
     )
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _checkout_src(checkout: str) -> tuple[str, str]:
+    """A checkout's ``src`` folder and a label naming its commit."""
+    src = Path(checkout).resolve() / "src"
+    if not (src / "edeflare").is_dir():
+        raise SystemExit(f"--baseline-src: no src/edeflare in {checkout}")
+    head = subprocess.run(
+        ["git", "-C", checkout, "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    )
+    return str(src), head.stdout.strip() or Path(checkout).name
 
 
 def _weights(tmp: Path, preset: str) -> str:
@@ -117,9 +139,18 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="640x480 at 1 M ev/s only")
     parser.add_argument("--repeat", type=int, default=2, help="runs per case; the fastest is kept")
     parser.add_argument(
-        "--only-street", action="store_true", help="the tiled Gen4.1 street case alone"
+        "--only-street",
+        action="store_true",
+        help="the tiled Gen4.1 street case alone (writes realtime_street.json)",
+    )
+    parser.add_argument(
+        "--baseline-src",
+        metavar="CHECKOUT",
+        help="also time the default model of another checkout of edeflare (e.g. a git "
+        "worktree of an older commit) on every case, in the same run",
     )
     args = parser.parse_args()
+    baseline = None if args.baseline_src is None else _checkout_src(args.baseline_src)
     from edeflare.io import write_events
 
     synthetic = (
@@ -174,11 +205,14 @@ def main() -> None:
             print(f"skip the street case: no {REAL / _STREET}", file=sys.stderr)
         for src, size, rate_label, case_methods in cases:
             ref = None
+            if baseline is not None:
+                case_methods = [(f"default @ {baseline[1]}", "model", {}), *case_methods]
             for label, method, params in case_methods:
                 dst = tmp / "out.h5"
+                code_src = baseline[0] if label.startswith("default @") else None
                 try:
                     runs = [
-                        _run(_CHILD, str(src), str(dst), method, json.dumps(params))
+                        _run(_CHILD, str(src), str(dst), method, json.dumps(params), src=code_src)
                         for _ in range(max(1, args.repeat))
                     ]
                     r = min(runs, key=lambda run: run["seconds"])
@@ -205,7 +239,7 @@ def main() -> None:
                 rows.append(row)
                 print(row, file=sys.stderr)
     report(
-        "realtime",
+        "realtime_street" if args.only_street else "realtime",
         rows,
         [
             "sensor",

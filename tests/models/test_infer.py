@@ -230,6 +230,24 @@ def test_warm_up_changes_no_output(model, rng):
     assert 0 < sum(e.size for _, e in b) < events.size  # a real model, really deciding
 
 
+def test_warm_up_windows_hold_a_light_then_none():
+    # so the warm-up loads the rules of both kinds of window (lights, light-free)
+    from edeflare.lights.cells import window_lights
+    from edeflare.models.infer import _warm_up_windows
+
+    for size in ((64, 48), (346, 260), (8, 6), (3, 3)):
+        windows = _warm_up_windows(size, 20_000, 3)
+        assert [s for s, _ in windows] == [0, 20_000, 40_000]
+        for start, ev in windows:
+            assert ev.size and (np.diff(ev["t"]) >= 0).all()
+            assert (ev["t"] >= start).all() and (ev["t"] < start + 20_000).all()
+            assert (ev["x"] < size[0]).all() and (ev["y"] < size[1]).all()
+            assert not ev["t"].flags.c_contiguous  # strided, as a real window's fields
+        lit = [bool(window_lights(ev, size, 20_000).any()) for _, ev in windows]
+        # a 3x3 sensor holds no light: thinner than MIN_LIGHT_RADIUS
+        assert lit == ([True, False, False] if size != (3, 3) else [False] * 3)
+
+
 _COMPILED_AFTER_WARM_UP = r"""
 import sys, numba, numpy as np
 from edeflare.events import iter_time_windows, make_events

@@ -83,12 +83,15 @@ def test_the_second_view_runs_on_one_thread_for_the_whole_stream():
     t = np.arange(0, 100_000, 1_000)
     ev = make_events(t, t % 7, t % 5, np.ones(t.size, int))
     s = TwoViewStreamer(20_000, 5_000, logits, cut=-1.0, batch_windows=1)
+    warmed = []
+    s.warm_up(lambda: warmed.append(threading.current_thread()))
     out = [s.process(ev[(ev["t"] >= a) & (ev["t"] < a + 20_000)], a + 20_000)
            for a in range(0, 100_000, 20_000)]  # fmt: skip
     main = threading.current_thread()
     second = {th for th in threads if th is not main}
     assert len(threads) > 8 and len(second) == 1  # both views of each window, one helper
     (helper,) = second
+    assert warmed == [helper]  # the warm-up ran on the thread the second view then used
     assert helper.is_alive()
     assert np.concatenate([*out, s.flush()]).size == ev.size
     assert not helper.is_alive()  # the flush ends the stream and its thread

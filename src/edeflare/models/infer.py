@@ -33,11 +33,11 @@ import torch
 
 from ..errors import EdeflareError
 from ..events import (
-    EVENT_DTYPE,
     SensorSize,
     check_events,
     check_sensor_size,
     concat_events,
+    make_events,
     select_events,
 )
 from ..lights.cells import covered_us
@@ -178,6 +178,35 @@ def _device(device: str) -> torch.device:
     if device == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     return torch.device(device)
+
+
+def _warm_up_windows(
+    sensor_size: tuple[int, int], window_us: int, n: int
+) -> list[tuple[int, np.ndarray]]:
+    """``n`` small windows for :meth:`ModelDeflarer.warm_up`: the first a 12x12 block firing
+    20 events per pixel (a light, where the sensor is that large) among scattered events,
+    the others the scattered events alone. Their fields are strided views, as a real
+    window's are (numba compiles separately for the contiguous fields of one event)."""
+    width, height = sensor_size
+    rng = np.random.default_rng(0)
+    scatter = make_events(
+        np.sort(rng.integers(0, window_us, 64)), rng.integers(0, width, 64),
+        rng.integers(0, height, 64), rng.integers(0, 2, 64),
+    )  # fmt: skip
+    side = min(12, width, height)
+    yy, xx = np.mgrid[:side, :side]
+    k = 20 * side * side
+    block = make_events(
+        np.arange(k) * window_us // k, np.tile(xx.ravel(), 20), np.tile(yy.ravel(), 20),
+        np.ones(k, np.int64),
+    )  # fmt: skip
+    out = []
+    for i in range(n):
+        ev = concat_events([scatter, block]) if i == 0 else scatter.copy()
+        ev = ev[np.argsort(ev["t"], kind="stable")]
+        ev["t"] += i * window_us
+        out.append((i * window_us, ev))
+    return out
 
 
 class ModelDeflarer:
@@ -511,21 +540,18 @@ class ModelDeflarer:
             yield start, out
 
     def warm_up(self, sensor_size: SensorSize) -> None:
-        """Run one batch of tiny windows through the whole path, so the first real one
-        does not pay for loading compiled kernels and preparing the network's
-        layers for this shape (about 0.5 s on CPU): start-up, not latency. Once
-        per sensor size."""
+        """Run small windows through the whole path, so the first real one does not pay
+        for loading compiled kernels and preparing the network's layers for this shape
+        (about 0.5 s on CPU): start-up, not latency. Once per sensor size.
+
+        The windows are :func:`_warm_up_windows`: one with a light and one without, so
+        the rules of both kinds of window load theirs too.
+        """
         size = (int(sensor_size[0]), int(sensor_size[1]))
         if size in self._warm:
             return
-        batch = []
-        for k in range(self.batch_windows):
-            # two events at pixel (0, 0): a window's fields are strided views, and
-            # numba compiles its kernels separately for one event's contiguous ones
-            ev = np.zeros(2, dtype=EVENT_DTYPE)
-            ev["t"] = k * self.window_us
-            batch.append((k * self.window_us, ev))
-        for _ in self.windows(batch, sensor_size):
+        n = max(2, self.batch_windows)
+        for _ in self.windows(_warm_up_windows(size, self.window_us, n), sensor_size):
             pass
         self._warm.add(size)
 
@@ -542,13 +568,16 @@ class ModelDeflarer:
         size = check_sensor_size(sensor_size)
         self.warm_up(size)
         if shift:
-            return TwoViewStreamer(
+            streamer = TwoViewStreamer(
                 self.window_us,
                 shift,
                 lambda batch: self.window_logits(batch, size),
                 keep_logit_threshold(self.keep_threshold),
                 self.batch_windows,
             )
+            warm = _warm_up_windows(size, self.window_us, 2)
+            streamer.warm_up(lambda: self.window_logits(warm, size))
+            return streamer
 
         def transform(
             batch: list[tuple[int, np.ndarray]], span: tuple[int, int | None]

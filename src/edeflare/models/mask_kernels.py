@@ -176,6 +176,8 @@ def _frames(width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray
             np.zeros(key[0] * key[1], np.uint8),
             np.zeros(2 * padded, np.int32),
         )
+        for frame in _scratch.frames:
+            frame.fill(0)  # their pages mapped now (warm-up), not in the first window
     return _scratch.frames
 
 

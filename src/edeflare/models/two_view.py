@@ -97,6 +97,11 @@ class TwoViewStreamer(Streamer):
         # zeroing fresh ones every window
         self._pool: concurrent.futures.ThreadPoolExecutor | None = None
 
+    def warm_up(self, work: Callable[[], object]) -> None:
+        """Run ``work`` (a model's warm-up) on the second view's thread, and wait: the
+        thread's first window then finds its kernels' frames made, as the main thread's."""
+        self._second_view_pool().submit(work).result()
+
     def _second_view_pool(self) -> concurrent.futures.ThreadPoolExecutor:
         if self._pool is None:
             self._pool = concurrent.futures.ThreadPoolExecutor(1, "edeflare-view")
