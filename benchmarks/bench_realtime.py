@@ -32,7 +32,8 @@ kept (the shared machine's noise only ever adds time).
 
 ``--baseline-src CHECKOUT`` adds a row per case for the bundled default of another
 checkout (``git worktree add /tmp/old COMMIT``), run from its own source in the same
-run: the comparable number on a machine whose speed drifts.
+run, and a ``vs_baseline`` column (its time over each row's): the comparable number on
+a machine whose speed drifts. The repeats go round all methods of a case in turn.
 
 Run: ``python benchmarks/bench_realtime.py [--quick] [--repeat N] [--only-street]
 [--baseline-src CHECKOUT]``
@@ -207,19 +208,33 @@ def main() -> None:
             ref = None
             if baseline is not None:
                 case_methods = [(f"default @ {baseline[1]}", "model", {}), *case_methods]
-            for label, method, params in case_methods:
-                dst = tmp / "out.h5"
-                code_src = baseline[0] if label.startswith("default @") else None
-                try:
-                    runs = [
-                        _run(_CHILD, str(src), str(dst), method, json.dumps(params), src=code_src)
-                        for _ in range(max(1, args.repeat))
-                    ]
-                    r = min(runs, key=lambda run: run["seconds"])
-                except subprocess.CalledProcessError as exc:
-                    print(f"skip {label}: {exc.stderr.strip().splitlines()[-1]}", file=sys.stderr)
+            # the repeats go round the methods, so a drift in the machine's speed touches
+            # every method alike
+            runs: dict[str, list[dict[str, float]]] = {}
+            for _ in range(max(1, args.repeat)):
+                for label, method, params in case_methods:
+                    if label in runs and not runs[label]:
+                        continue  # failed once: skipped
+                    dst = tmp / "out.h5"
+                    code_src = baseline[0] if label.startswith("default @") else None
+                    try:
+                        run = _run(
+                            _CHILD, str(src), str(dst), method, json.dumps(params), src=code_src
+                        )
+                    except subprocess.CalledProcessError as exc:
+                        err = exc.stderr.strip().splitlines()[-1]
+                        print(f"skip {label}: {err}", file=sys.stderr)
+                        runs[label] = []
+                        continue
+                    dst.unlink(missing_ok=True)
+                    runs.setdefault(label, []).append(run)
+            base = None
+            for label, _, _ in case_methods:
+                if not runs.get(label):
                     continue
-                dst.unlink(missing_ok=True)
+                r = min(runs[label], key=lambda run: run["seconds"])
+                if label.startswith("default @"):
+                    base = r["seconds"]
                 if label == "model unet2d.lite":
                     ref = r["seconds"]
                 p50, p95, worst = r["latency_ms"]
@@ -229,6 +244,7 @@ def main() -> None:
                     "method": label,
                     "rtf": r["seconds"] / r["span_s"],
                     "speedup": (ref / r["seconds"]) if ref else "",
+                    "vs_baseline": (base / r["seconds"]) if base else "",
                     "throughput": r["events_in"] / r["seconds"] / 1e6,
                     "latency_ms": p50,
                     "p95_ms": p95,
@@ -247,6 +263,7 @@ def main() -> None:
             "method",
             "rtf",
             "speedup",
+            *(["vs_baseline"] if baseline is not None else []),
             "throughput",
             "latency_ms",
             "p95_ms",
