@@ -171,7 +171,9 @@ def test_records_are_the_events_in_bands_of_rows_and_serve_both_kernels():
         np.sort(rng.integers(0, 20_000, n)), rng.integers(0, 40, n), rng.integers(0, 37, n),
         rng.integers(0, 2, n),
     )  # fmt: skip
-    rec = fm.event_records(ev, 0, 20_000, 8, size)
+    records = fm.event_records(ev, 0, 20_000, 8, size)
+    assert (records.bins, records.sensor_size) == (8, size)
+    rec = records.rows
     order = rec[:, 3]
     assert sorted(order.tolist()) == list(range(n))  # every event once
     band = ev["y"][order] // 8
@@ -184,16 +186,24 @@ def test_records_are_the_events_in_bands_of_rows_and_serve_both_kernels():
     # given or made inside, the same features and logits
     net = _pixel_net(5)
     feats = fm.event_features(ev, size, 0, 20_000, 8, 8)
-    np.testing.assert_array_equal(fm.event_features(ev, size, 0, 20_000, 8, 8, records=rec), feats)
+    got = fm.event_features(ev, size, 0, 20_000, 8, 8, records=records)
+    np.testing.assert_array_equal(got, feats)
     with torch.no_grad():
         coarse = net.logits(torch.from_numpy(feats)[None])[0].numpy()
     kw = {"pixel_params": net.pixel_params(), "sensor_size": size}
     np.testing.assert_array_equal(
-        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=rec, **kw),
+        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=records, **kw),
         fm.event_keep_logits(coarse, ev, 0, 20_000, 8, **kw),
     )
-    with pytest.raises(ValueError, match="3000 event_records"):
-        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=rec[1:], **kw)
+    # records the kernels would overrun are refused, not read
+    short = records._replace(rows=rec[1:])
+    with pytest.raises(ValueError, match="3000 event_records at 8 bins"):
+        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=short, **kw)
+    with pytest.raises(ValueError, match="3000 event_records at 4 bins"):
+        fm.event_features(ev, size, 0, 20_000, 4, 8, records=records)
+    unchecked = fm.event_records(ev, 0, 20_000, 8)
+    with pytest.raises(ValueError, match=r"made without a sensor; .* need them on \(40, 37\)"):
+        fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=unchecked, **kw)
     with pytest.raises(ValueError, match="outside the window"):
         fm.event_records(ev, 0, 10_000, 8, size)
 

@@ -11,11 +11,13 @@ voxel grid is ever built.
 from __future__ import annotations
 
 import threading
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 __all__ = [
+    "EventRecords",
     "event_features",
     "event_keep_logits",
     "event_keep_mask",
@@ -34,7 +36,7 @@ def event_features(
     bins: int,
     scale: int,
     *,
-    records: np.ndarray | None = None,
+    records: EventRecords | None = None,
 ) -> np.ndarray:
     """The features of :meth:`FlareMaskNet.features`, straight from events (float32).
 
@@ -55,12 +57,37 @@ def event_features(
     h, w = -(-height // scale), -(-width // scale)
     if records is None:
         records = event_records(events, window_start_us, window_us, bins, sensor_size)
+    else:
+        records.check(events, bins, (width, height))
     seen = _frames(width, height)[2]
-    counts = _cell_counts(records, int(bins), int(scale), h, w, seen, width)
+    counts = _cell_counts(records.rows, int(bins), int(scale), h, w, seen, width)
     feats = counts.astype(np.float64)
     feats[:-1] = np.log1p(feats[:-1])
     feats[-1] /= float(scale * scale)
     return feats.astype(np.float32)
+
+
+class EventRecords(NamedTuple):
+    """A window's events as the kernels read them (:func:`event_records`), with what
+    they were made for: the compiled kernels index their frames unchecked, so a
+    consumer checks these (cheaply) instead of the rows."""
+
+    rows: np.ndarray
+    """``(n, 4) int32``: ``x``, ``y``, twice the channel plus the polarity, the index."""
+    bins: int
+    """The time bins per polarity the channels count."""
+    sensor_size: tuple[int, int] | None
+    """The sensor every event was checked on (None: not checked)."""
+
+    def check(self, events: np.ndarray, bins: int, sensor_size: tuple[int, int] | None) -> None:
+        """Raise unless these are ``events``' records at ``bins``, checked on ``sensor_size``."""
+        if self.rows.shape != (events.size, 4) or self.bins != bins:
+            raise ValueError(
+                f"records must be the window's {events.size} event_records at {bins} bins"
+            )
+        if sensor_size is not None and self.sensor_size != tuple(sensor_size):
+            made = "without a sensor" if self.sensor_size is None else f"on {self.sensor_size}"
+            raise ValueError(f"records made {made}; these kernels need them on {sensor_size}")
 
 
 def event_records(
@@ -69,11 +96,11 @@ def event_records(
     window_us: int,
     bins: int,
     sensor_size: tuple[int, int] | None = None,
-) -> np.ndarray:
-    """A window's events as the kernels read them: ``(n, 4) int32`` records in bands of
+) -> EventRecords:
+    """A window's events as the kernels read them: ``(n, 4) int32`` rows in bands of
     8 sensor rows, in time order within a band.
 
-    Each record holds ``x``, ``y``, twice the event's time bin and polarity channel
+    Each row holds ``x``, ``y``, twice the event's time bin and polarity channel
     (``bin + bins * (1 - polarity)``, the network's output channel) plus its polarity,
     and the event's index in the window. Made once per window, they serve both
     :func:`event_features` and :func:`event_keep_logits`. The events must lie in the
@@ -83,7 +110,7 @@ def event_records(
     --------
     >>> from edeflare.events import make_events
     >>> ev = make_events([0, 5, 15], [0, 1, 5], [9, 2, 3], [1, 0, 1])
-    >>> event_records(ev, 0, 20, bins=2, sensor_size=(8, 12)).tolist()  # rows 2, 3 then 9
+    >>> event_records(ev, 0, 20, bins=2, sensor_size=(8, 12)).rows.tolist()  # rows 2, 3, 9
     [[1, 2, 4, 1], [5, 3, 3, 2], [0, 9, 1, 0]]
     """
     if sensor_size is None:
@@ -93,10 +120,12 @@ def event_records(
         bounds = (int(sensor_size[0]), int(sensor_size[1]))
         height = bounds[1]
     _check_inside(events, window_start_us, window_us, *bounds)
-    return _band_records(
+    rows = _band_records(
         events["t"], events["x"], events["y"], events["p"], int(window_start_us),
         int(window_us), int(bins), height,
     )  # fmt: skip
+    size = None if sensor_size is None else (int(sensor_size[0]), int(sensor_size[1]))
+    return EventRecords(rows, int(bins), size)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -461,7 +490,7 @@ def event_keep_logits(
     pixel_params: dict[str, np.ndarray] | None = None,
     sensor_size: tuple[int, int] | None = None,
     support: np.ndarray | None = None,
-    records: np.ndarray | None = None,
+    records: EventRecords | None = None,
 ) -> np.ndarray:
     """Per-event keep logits (float64) from low-resolution logits ``(2 bins, h, w)``.
 
@@ -502,16 +531,14 @@ def event_keep_logits(
         if sensor_size is None:
             raise ValueError("the events' support needs the sensor size")
         support[:] = event_support(events, sensor_size)
+    # the refinement counts into sensor-sized frames; the logits are sampled clipped
+    on_sensor = sensor_size if pixel_params is not None else None
     if records is None:
-        # the refinement counts into sensor-sized frames; the logits are sampled clipped
-        records = event_records(
-            events, window_start_us, window_us, logits.shape[0] // 2,
-            sensor_size if pixel_params is not None else None,
-        )  # fmt: skip
-    elif records.shape != (events.size, 4):
-        raise ValueError(f"records must be the window's {events.size} event_records")
+        records = event_records(events, window_start_us, window_us, logits.shape[0] // 2, on_sensor)
+    else:
+        records.check(events, logits.shape[0] // 2, on_sensor)
     return _event_logits(
-        records,
+        records.rows,
         np.ascontiguousarray(logits, dtype=np.float32),
         int(scale),
         on,
