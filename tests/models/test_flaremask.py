@@ -141,7 +141,7 @@ def test_event_logits_equal_the_dense_paths_whether_pixels_repeat_or_not(side):
         coarse[0].numpy(), ev, 0, 20_000, 8, pixel_params=net.pixel_params(), sensor_size=size
     )
     np.testing.assert_allclose(got, full[channel, ev["y"], ev["x"]], rtol=0, atol=1e-4)
-    on, total, _, _ = fm._frames(*size)
+    on, total, _ = fm._count_frames(*size, ev.size)
     assert not on.any() and not total.any()  # the frames are left zeroed for the next window
     # the events' support comes with the refinement's counts (memoised or not), and
     # without a refinement from event_support itself; either way a 5x5 box count
@@ -206,6 +206,30 @@ def test_records_are_the_events_in_bands_of_rows_and_serve_both_kernels():
         fm.event_keep_logits(coarse, ev, 0, 20_000, 8, records=unchecked, **kw)
     with pytest.raises(ValueError, match="outside the window"):
         fm.event_records(ev, 0, 10_000, 8, size)
+
+
+@pytest.mark.parametrize("n", [65_535, 65_536])
+def test_counts_of_the_largest_windows_do_not_wrap(n):
+    # below 65,536 events the count frames are uint16 (no pixel's count nor square's sum
+    # can reach it), from there int32: every event at one pixel, on both sides of it
+    size = (16, 16)
+    ev = make_events(np.arange(n) * 20_000 // n, np.full(n, 5), np.full(n, 5), np.arange(n) % 2)
+    net = _pixel_net(6)
+    coarse = np.zeros((16, 2, 2), np.float32)
+    support = np.empty(n, np.int64)
+    logits = fm.event_keep_logits(
+        coarse, ev, 0, 20_000, 8, pixel_params=net.pixel_params(), sensor_size=size,
+        support=support,
+    )  # fmt: skip
+    assert (support == n - 1).all()
+    on, off = n // 2, n - n // 2
+    counts = np.array([[on, off, 0, 0], [off, on, 0, 0]], np.float64)  # ON and OFF events
+    with torch.no_grad():
+        w = {k: v.astype(np.float64) for k, v in net.pixel_params().items()}
+    hidden = np.maximum(np.log1p(counts) @ w["w_in"].T + w["b_in"], 0.0)
+    expected = hidden @ w["w_out"] + w["b_out"][0]  # the network's logit is 0 here
+    np.testing.assert_allclose(logits[:2], expected[ev["p"][:2] ^ 1], rtol=0, atol=1e-9)
+    assert len(np.unique(logits)) == len(np.unique(counts, axis=0))  # one logit a polarity
 
 
 def test_pixel_features_count_the_pixel_and_its_neighbours_by_hand():

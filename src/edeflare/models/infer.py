@@ -183,16 +183,21 @@ def _device(device: str) -> torch.device:
 def _warm_up_windows(
     sensor_size: tuple[int, int], window_us: int, n: int
 ) -> list[tuple[int, np.ndarray]]:
-    """``n`` small windows for :meth:`ModelDeflarer.warm_up`: the first a 12x12 block firing
-    20 events per pixel (a light, where the sensor is that large) among scattered events,
-    the others the scattered events alone. Their fields are strided views, as a real
-    window's are (numba compiles separately for the contiguous fields of one event)."""
+    """``n`` windows for :meth:`ModelDeflarer.warm_up`: the first a 12x12 block firing 20
+    events per pixel (a light, where the sensor is that large) among 64 scattered events,
+    the others scattered events alone, the last 65,536 of them (the kernels' counts are
+    ``uint16`` below that many events, ``int32`` from it: both variants compile). Their
+    fields are strided views, as a real window's are (numba compiles separately for the
+    contiguous fields of one event)."""
     width, height = sensor_size
     rng = np.random.default_rng(0)
-    scatter = make_events(
-        np.sort(rng.integers(0, window_us, 64)), rng.integers(0, width, 64),
-        rng.integers(0, height, 64), rng.integers(0, 2, 64),
-    )  # fmt: skip
+
+    def scatter(k: int) -> np.ndarray:
+        return make_events(
+            np.sort(rng.integers(0, window_us, k)), rng.integers(0, width, k),
+            rng.integers(0, height, k), rng.integers(0, 2, k),
+        )  # fmt: skip
+
     side = min(12, width, height)
     yy, xx = np.mgrid[:side, :side]
     k = 20 * side * side
@@ -202,7 +207,10 @@ def _warm_up_windows(
     )  # fmt: skip
     out = []
     for i in range(n):
-        ev = concat_events([scatter, block]) if i == 0 else scatter.copy()
+        if i == 0:
+            ev = concat_events([scatter(64), block])
+        else:
+            ev = scatter(1 << 16 if i == n - 1 else 64)
         ev = ev[np.argsort(ev["t"], kind="stable")]
         ev["t"] += i * window_us
         out.append((i * window_us, ev))
