@@ -206,17 +206,19 @@ def main() -> None:
             print(f"skip the street case: no {REAL / _STREET}", file=sys.stderr)
         for src, size, rate_label, case_methods in cases:
             ref = None
-            if baseline is not None:
-                case_methods = [(f"default @ {baseline[1]}", "model", {}), *case_methods]
+            base_label = None if baseline is None else f"default @ {baseline[1]}"
+            if base_label is not None:
+                case_methods = [(base_label, "model", {}), *case_methods]
             # the repeats go round the methods, so a drift in the machine's speed touches
             # every method alike
             runs: dict[str, list[dict[str, float]]] = {}
+            failed: set[str] = set()
             for _ in range(max(1, args.repeat)):
                 for label, method, params in case_methods:
-                    if label in runs and not runs[label]:
-                        continue  # failed once: skipped
+                    if label in failed:
+                        continue
                     dst = tmp / "out.h5"
-                    code_src = baseline[0] if label.startswith("default @") else None
+                    code_src = baseline[0] if label == base_label else None
                     try:
                         run = _run(
                             _CHILD, str(src), str(dst), method, json.dumps(params), src=code_src
@@ -224,16 +226,16 @@ def main() -> None:
                     except subprocess.CalledProcessError as exc:
                         err = exc.stderr.strip().splitlines()[-1]
                         print(f"skip {label}: {err}", file=sys.stderr)
-                        runs[label] = []
+                        failed.add(label)
                         continue
                     dst.unlink(missing_ok=True)
                     runs.setdefault(label, []).append(run)
             base = None
             for label, _, _ in case_methods:
-                if not runs.get(label):
+                if label in failed or label not in runs:
                     continue
                 r = min(runs[label], key=lambda run: run["seconds"])
-                if label.startswith("default @"):
+                if label == base_label:
                     base = r["seconds"]
                 if label == "model unet2d.lite":
                     ref = r["seconds"]

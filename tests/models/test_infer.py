@@ -252,7 +252,7 @@ def test_warm_up_windows_hold_a_light_then_none():
 
 _COMPILED_AFTER_WARM_UP = r"""
 import sys, numba, numpy as np
-from edeflare.events import iter_time_windows, make_events
+from edeflare.events import make_events
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 
 def signatures():
