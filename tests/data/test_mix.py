@@ -84,6 +84,30 @@ def test_the_gaps_mix_stores_the_scene_alone_beside_dense_and_dim_flare(tmp_path
     assert not {r.seed for _, r in RECIPES["eflare-gaps"].parts} & set(seeds)
 
 
+def test_the_day_mix_stores_day_streets_at_the_larger_sensors(tmp_path):
+    # eflare-day: day streets at 640x480 and 1280x720 (eflare-mix's are night streets
+    # there), under eflare-night's weak lights and the forward model's strong sources,
+    # the scene alone stored in every part
+    full = RECIPES["eflare-day"]
+    assert full.part_names == ("day-640", "day-1280", "dense-day-640", "dense-day-1280")
+    assert [full.part(n).sensor_size for n in full.part_names] == [
+        (640, 480), (1280, 720), (640, 480), (1280, 720)]  # fmt: skip
+    day_scene = RECIPES["eflare-day-street"].scene
+    assert full.part("day-640").scene == day_scene
+    assert full.part("day-1280").scene.sky_level == day_scene.sky_level
+    assert full.part("day-1280").scene.pan_px_per_s == (30.0, 300.0)  # x1.5 at 1280x720
+    assert full.part("dense-day-640").config.variant == "forward"
+    small = full.replace(sequences=1, test_sequences=0, sensor_size=(48, 36), duration_us=20_000)
+    generate_dataset(small, tmp_path, progress=False)
+    for part in full.part_names:
+        with h5py.File(tmp_path / part / "train" / "seq_00000.h5") as f:
+            assert {"input", "gt", "background"} <= set(f), part
+    seeds = [r.seed for name in RECIPES.names() if name != "eflare-day"
+             for r in ([p for _, p in RECIPES[name].parts] if isinstance(RECIPES[name], Mix)
+                       else [RECIPES[name]])]  # fmt: skip
+    assert not {r.seed for _, r in full.parts} & set(seeds)
+
+
 def test_shards_assemble_the_same_bytes(reference, tmp_path):
     out, _ = reference
     # shard i/3 makes the items at positions i, i + 3, ... of the mix's order
