@@ -382,3 +382,92 @@ def test_time_since_the_pixels_last_event_equals_a_sort_by_pixel(rng):
     want[order] = gap
     np.testing.assert_array_equal(_since_pixel(ev, 64, 48, 20_000), want)
     np.testing.assert_array_equal(_since_pixel(ev, 64, 48, 20_000), want)  # frame left reset
+
+
+# ----------------------------------------------------------------------------- context
+
+
+def test_a_context_head_learns_what_its_features_cannot_tell(tmp_path, rng):
+    # polarity alone cannot tell the left half's flare from the right half's scene: the
+    # plain head keeps both or neither, the context (a map of the whole window) learns it
+    for part in ("a", "b"):
+        _pairs(tmp_path / "mix" / part, rng, 2)
+    base = tmp_path / "base.safetensors"
+    save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+    parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
+    plain = HeadTrainingConfig(features=("polarity",), hidden=(8,), epochs=20, per_window=500)
+    with_context = dataclasses.replace(
+        plain, context=2, context_widths=(4, 8), batch_windows=2, epochs=40, lr=1e-2
+    )
+    _pairs(tmp_path / "new", rng, 0)
+    from edeflare.io.sequence import read_sequence
+
+    inp, gt, size, *_ = read_sequence(tmp_path / "new" / "test" / "s0.h5")
+    left_in = (inp["x"] < size[0] // 2).sum()
+    kept = {}
+    for name, config in (("plain", plain), ("context", with_context)):
+        train_head(parts, base, tmp_path / name, config, progress=False)
+        out = deflare(inp, size, "model", weights=tmp_path / name / "model.safetensors")
+        left = out["x"] < size[0] // 2
+        kept[name] = (left.sum() / left_in, (~left).sum() / gt.size)
+    assert kept["plain"][0] > 0.3 or kept["plain"][1] < 0.7  # no better than a coin
+    assert kept["context"][0] < 0.1 and kept["context"][1] > 0.9  # flare gone, scene kept
+    card = read_card(tmp_path / "context" / "model.safetensors")
+    assert card.head["context"] == {"channels": 2, "inputs": 33, "widths": [4, 8]}
+    # the windows' cells are cached with the rows; a rerun reads them and fits alike
+    cached = sorted(p.name for p in (tmp_path / "context").glob("features-*.npz"))
+    with np.load(tmp_path / "context" / cached[0]) as z:
+        assert {"window", "cell", "sizes", "cells_000000"} <= set(z.files)
+        assert z["cells_000000"].shape == (33, 8, 12)  # 17 inputs, 16 logits; 4x4-pixel cells
+    again = train_head(parts, base, tmp_path / "context", with_context, progress=False)
+    assert again["keep_threshold"] == card.keep_threshold
+    assert sorted(p.name for p in (tmp_path / "context").glob("features-*.npz")) == cached
+
+
+def test_a_card_with_a_malformed_context_fails_to_load_naming_it():
+    head = {"features": ["net_logit"], "context": {"channels": 2, "inputs": 17}}
+    with pytest.raises(WeightsError, match="context holds channels, inputs and widths"):
+        ModelCard.from_dict({"preset": "mask.lite", "head": head})
+    head["context"] = {"channels": 0, "inputs": 17, "widths": [4]}
+    with pytest.raises(WeightsError, match="context sizes must be positive integers"):
+        ModelCard.from_dict({"preset": "mask.lite", "head": head})
+
+
+def test_a_context_reading_other_cells_than_the_network_gives_is_refused(tmp_path):
+    head = EventHead(["net_logit"], (), {"channels": 2, "inputs": 17, "widths": [4]})
+    save_with_head(tmp_path / "h.safetensors", head)  # mask.lite: 8 bins, 33 channels
+    with pytest.raises(WeightsError, match="context reads 17 channels of cells; a mask.lite "
+                       r"network gives 33 \(8 bins\)"):  # fmt: skip
+        load_model(tmp_path / "h.safetensors")
+
+
+def test_context_columns_are_read_at_each_events_cell(tmp_path, rng):
+    head = EventHead(["net_logit"], hidden=(), context={"channels": 1, "inputs": 17,
+                                                       "widths": [4]})  # fmt: skip
+    from edeflare.models.event_head import gather_context
+
+    maps = np.arange(2 * 3, dtype=np.float32).reshape(1, 2, 3)
+    ev = make_events([0, 1, 2], [0, 5, 11], [0, 4, 7], [1, 1, 0])
+    assert gather_context(maps, ev, 4).tolist() == [[0.0], [4.0], [5.0]]
+    assert head.columns == 2 and head.numpy_params()["context"] == 1
+
+
+def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng):
+    pytest.importorskip("onnxruntime")
+    from edeflare.models.export import export_onnx, onnx_parity
+
+    head = EventHead(["net_logit", "support"], hidden=(4,),
+                     context={"channels": 2, "inputs": 33, "widths": [4, 8]})  # fmt: skip
+    torch.manual_seed(0)
+    with torch.no_grad():
+        for p in head.parameters():
+            torch.nn.init.normal_(p, std=0.5)
+    save_with_head(tmp_path / "h.safetensors", head)
+    export_onnx(tmp_path / "h.safetensors", tmp_path / "h.onnx", (64, 48))
+    ev = random_events(rng, 8_000, (64, 48), t0=0, span_us=60_000)
+    windows = [(s, ev[(ev["t"] >= s) & (ev["t"] < s + 20_000)]) for s in (0, 20_000, 40_000)]
+    result = onnx_parity(tmp_path / "h.safetensors", tmp_path / "h.onnx", windows, (64, 48))
+    assert result.decisions == ev.size and result.decisions_differing <= ev.size // 1000
+    a = deflare(ev, (64, 48), "model", weights=tmp_path / "h.safetensors", runtime="torch")
+    b = deflare(ev, (64, 48), "model", weights=tmp_path / "h.onnx")
+    assert abs(a.size - b.size) <= ev.size // 1000 and 0.05 * ev.size < a.size < 0.95 * ev.size

@@ -20,7 +20,7 @@ def _widths(text: str) -> tuple[int, ...]:
         widths = (0,)
     if any(w < 1 for w in widths):
         raise argparse.ArgumentTypeError(
-            f"hidden must be positive widths separated by commas (e.g. 32,16; '' for none), "
+            f"widths must be positive integers separated by commas (e.g. 32,16; '' for none), "
             f"got {text!r}"
         )
     return widths
@@ -65,6 +65,20 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="also learn from each pair's ground truth alone, every event kept (a flare-free "
         "recording of the same scene)",
     )
+    p.add_argument(
+        "--context",
+        type=int,
+        default=0,
+        metavar="K",
+        help="learn K maps of the whole window with the head: a cell U-Net on the network's "
+        "inputs and keep logits, read at each event's cell (0: none)",
+    )
+    p.add_argument(
+        "--context-widths",
+        type=_widths,
+        default=(16, 32, 64, 64),
+        help="level widths of the context's U-Net",
+    )
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--seed", type=int, default=0)
@@ -82,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
     for name in ("per_window", "epochs"):
         if getattr(args, name) < 1:
             raise ParameterError(f"--{name.replace('_', '-')} must be at least 1")
+    if args.context < 0:
+        raise ParameterError(f"--context must be 0 or more, got {args.context}")
+    if not args.context_widths:
+        raise ParameterError("--context-widths needs at least one width")
     if not args.lr > 0:
         raise ParameterError(f"--lr must be positive, got {args.lr}")
     features = (
@@ -96,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
         hidden=tuple(args.hidden),
         per_window=args.per_window,
         flare_free_windows=args.flare_free_windows,
+        context=args.context,
+        context_widths=tuple(args.context_widths),
         epochs=args.epochs,
         lr=args.lr,
         seed=args.seed,

@@ -32,37 +32,68 @@ from torch import nn
 from ..errors import ParameterError
 from .event_features import check_feature_names
 
-__all__ = ["HEAD_BLOCK", "EventHead", "head_logits", "head_spec"]
+__all__ = ["HEAD_BLOCK", "EventHead", "gather_context", "head_logits", "head_spec"]
 
 
 def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, Any]:
-    """A card's ``head`` entry checked: ``{"features": [...], "hidden": [...]}``.
+    """A card's ``head`` entry checked: ``{"features": [...], "hidden": [...]}``, and
+    ``"context": {"channels": k, "inputs": c, "widths": [...]}`` for a head with a learned
+    whole-frame context (:class:`EventHead`).
 
     Examples
     --------
     >>> head_spec({"features": ["net_logit"], "hidden": [8]})
     {'features': ['net_logit'], 'hidden': [8]}
-    >>> head_spec({"features": ["net_logit"], "hiden": [8]}, "head")
+    >>> head_spec({"features": ["net_logit"], "hiden": [8]}, "head")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    edeflare.errors.ParameterError: head: unknown keys ['hiden'] (a head holds features, hidden)
+    edeflare.errors.ParameterError: head: unknown keys ['hiden'] (a head holds features, ...)
     """
-    unknown = sorted(set(spec) - {"features", "hidden"})
+    unknown = sorted(set(spec) - {"features", "hidden", "context"})
     if unknown:
-        raise ParameterError(f"{where}: unknown keys {unknown} (a head holds features, hidden)")
+        raise ParameterError(
+            f"{where}: unknown keys {unknown} (a head holds features, hidden, context)"
+        )
     features = list(check_feature_names(spec.get("features", ()), where))
     if not features:
         raise ParameterError(f"{where}: needs at least one feature")
-    hidden = spec.get("hidden", ())
-    if not isinstance(hidden, Sequence) or any(
-        isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in hidden
+    hidden = _widths(spec.get("hidden", ()), f"{where}: hidden widths")
+    out: dict[str, Any] = {"features": features, "hidden": hidden}
+    context = spec.get("context")
+    if context:
+        if not isinstance(context, Mapping):
+            raise ParameterError(f"{where}: context must be a mapping, got {context!r}")
+        unknown = sorted(set(context) - {"channels", "inputs", "widths"})
+        if unknown or not {"channels", "inputs", "widths"} <= set(context):
+            raise ParameterError(
+                f"{where}: context holds channels, inputs and widths, got {sorted(context)}"
+            )
+        (channels, inputs), widths = (
+            _widths([context["channels"], context["inputs"]], f"{where}: context sizes"),
+            _widths(context["widths"], f"{where}: context widths"),
+        )
+        if not widths:
+            raise ParameterError(f"{where}: context widths must not be empty")
+        out["context"] = {"channels": channels, "inputs": inputs, "widths": widths}
+    return out
+
+
+def _widths(values: Any, what: str) -> list[int]:
+    if not isinstance(values, Sequence) or any(
+        isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in values
     ):
-        raise ParameterError(f"{where}: hidden widths must be positive integers, got {hidden!r}")
-    return {"features": features, "hidden": [int(h) for h in hidden]}
+        raise ParameterError(f"{what} must be positive integers, got {values!r}")
+    return [int(h) for h in values]
 
 
 class EventHead(nn.Module):
     """Keep logit of an event from its features: standardise, then a ReLU perceptron.
+
+    With a ``context``, a small 2-D U-Net (:class:`~edeflare.models.unet2d.UNet2dLayers`)
+    maps the window's cells (the mask network's inputs and its keep logits, ``inputs``
+    channels) to ``channels`` maps of the whole frame; each event reads them at its cell
+    (:meth:`context_maps`, then :func:`gather_context`), as extra columns after its
+    features. The context is learned with the head, from the same pairs.
 
     Parameters
     ----------
@@ -70,6 +101,9 @@ class EventHead(nn.Module):
         The :data:`~edeflare.models.event_features.FEATURES` it reads, in order.
     hidden : sequence of int
         Widths of the hidden layers (none: a logistic regression).
+    context : mapping, optional
+        ``{"channels": k, "inputs": c, "widths": [...]}``: the context network's output
+        maps, input channels and level widths (none: no context).
 
     Examples
     --------
@@ -78,28 +112,69 @@ class EventHead(nn.Module):
     torch.Size([5])
     >>> sum(p.numel() for p in head.parameters())
     209
+    >>> ctx = EventHead(("net_logit",), (8,), {"channels": 2, "inputs": 5, "widths": [4, 8]})
+    >>> ctx.context_maps(torch.zeros(1, 5, 6, 7)).shape, ctx.columns
+    (torch.Size([1, 2, 6, 7]), 3)
     """
 
-    def __init__(self, features: Sequence[str], hidden: Sequence[int] = (32, 16)) -> None:
+    def __init__(
+        self,
+        features: Sequence[str],
+        hidden: Sequence[int] = (32, 16),
+        context: Mapping[str, Any] | None = None,
+    ) -> None:
         super().__init__()
-        spec = head_spec({"features": list(features), "hidden": list(hidden)})
+        spec = head_spec(
+            {"features": list(features), "hidden": list(hidden), "context": context or {}}
+        )
         self.feature_names: tuple[str, ...] = tuple(spec["features"])
         self.hidden: tuple[int, ...] = tuple(spec["hidden"])
-        n = len(self.feature_names)
-        self.register_buffer("mean", torch.zeros(n))
-        self.register_buffer("scale", torch.ones(n))
-        widths = [n, *self.hidden, 1]
+        self.context: dict[str, Any] | None = spec.get("context")
+        k = self.context["channels"] if self.context else 0
+        self.columns = len(self.feature_names) + k
+        """Input columns: the features, then the context's channels."""
+        # the context's columns keep mean 0 and scale 1 (learned maps need no scaling)
+        self.register_buffer("mean", torch.zeros(self.columns))
+        self.register_buffer("scale", torch.ones(self.columns))
+        if self.context:
+            from .unet2d import UNet2dLayers
+
+            c, widths = self.context["inputs"], self.context["widths"]
+            self.context_net = UNet2dLayers(c, k, widths, _groups(widths))
+            # not zero like a residual's last layer: the perceptron must see the maps vary
+            # from the start for either to learn
+            nn.init.normal_(self.context_net.final.weight, std=0.1)
+            self.register_buffer("context_mean", torch.zeros(c))
+            self.register_buffer("context_scale", torch.ones(c))
+        widths = [self.columns, *self.hidden, 1]
         self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in itertools.pairwise(widths))
 
     def spec(self) -> dict[str, Any]:
         """The card's ``head`` entry of this head."""
-        return {"features": list(self.feature_names), "hidden": list(self.hidden)}
+        out: dict[str, Any] = {"features": list(self.feature_names), "hidden": list(self.hidden)}
+        if self.context:
+            out["context"] = dict(self.context)
+        return out
 
-    def standardise_on(self, x: torch.Tensor) -> None:
-        """Set the standardisation to the mean and standard deviation of ``x`` (per column)."""
+    def standardise_on(self, x: torch.Tensor, cells: torch.Tensor | None = None) -> None:
+        """Set the standardisation to the mean and standard deviation of features ``x``
+        (per column) and, with a context, of ``cells`` (per channel, over every cell of
+        the windows ``(N, inputs, h, w)``)."""
+        n = len(self.feature_names)
         with torch.no_grad():
-            self.mean.copy_(x.mean(0))
-            self.scale.copy_(x.std(0).clamp(min=1e-3))
+            self.mean[:n] = x[:, :n].mean(0)
+            self.scale[:n] = x[:, :n].std(0).clamp(min=1e-3)
+            if self.context and cells is not None:
+                flat = cells.transpose(0, 1).reshape(cells.shape[1], -1).double()
+                self.context_mean.copy_(flat.mean(1))
+                self.context_scale.copy_(flat.std(1).clamp(min=1e-3))
+
+    def context_maps(self, cells: torch.Tensor) -> torch.Tensor:
+        """The context's maps ``(N, channels, h, w)`` of windows' cells ``(N, inputs, h, w)``."""
+        if not self.context:
+            raise ValueError("this head has no context")
+        z = (cells - self.context_mean[:, None, None]) / self.context_scale[:, None, None]
+        return self.context_net.unet(z)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         z = (x - self.mean) / self.scale
@@ -111,7 +186,8 @@ class EventHead(nn.Module):
 
     def numpy_params(self) -> dict[str, Any]:
         """The weights as float32 arrays for :func:`head_logits` (the standardisation
-        folded into the first layer)."""
+        folded into the first layer), the feature names and the context's channels
+        (``context``, 0 without one: the columns after the features)."""
         with torch.no_grad():
             weights = [layer.weight.double().cpu().numpy() for layer in self.layers]
             biases = [layer.bias.double().cpu().numpy() for layer in self.layers]
@@ -121,9 +197,31 @@ class EventHead(nn.Module):
         weights[0] = w0
         return {
             "features": self.feature_names,
+            "context": self.context["channels"] if self.context else 0,
             "weights": [np.ascontiguousarray(w.T, np.float32) for w in weights],
             "biases": [b.astype(np.float32) for b in biases],
         }
+
+
+def _groups(widths: Sequence[int]) -> int:
+    """Group norms' groups of a context network of level ``widths``: 4 where all divide."""
+    return 4 if all(w % 4 == 0 for w in widths) else 1
+
+
+def gather_context(maps: np.ndarray, events: np.ndarray, scale: int) -> np.ndarray:
+    """Each event's column of context ``maps`` ``(k, h, w)`` at its cell of ``scale``
+    pixels: ``(n, k)`` float32.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> maps = np.arange(2 * 2 * 3, dtype=np.float32).reshape(2, 2, 3)
+    >>> gather_context(maps, make_events([0, 1], [0, 9], [0, 5], [1, 0]), 4).tolist()
+    [[0.0, 6.0], [5.0, 11.0]]
+    """
+    k, h, w = maps.shape
+    cell = (events["y"].astype(np.intp) // scale) * w + events["x"].astype(np.intp) // scale
+    return np.ascontiguousarray(maps.reshape(k, h * w)[:, cell].T, dtype=np.float32)
 
 
 HEAD_BLOCK = 65_536

@@ -88,13 +88,21 @@ def _need(module: str) -> Any:
         ) from None
 
 
-class _MaskLogits(nn.Module):
+class MaskOutputs(nn.Module):
+    """A mask network's graph: its keep logits ``(N, 2 bins, h, w)`` of cell features and,
+    where its keep head has a context, the context's maps after them (``(N, 2 bins + k,
+    h, w)``; the context reads the features and the logits)."""
+
     def __init__(self, net: FlareMaskNet) -> None:
         super().__init__()
         self.net = net
 
     def forward(self, features: torch.Tensor) -> torch.Tensor:
-        return self.net.logits(features)
+        logits = self.net.logits(features)
+        head = getattr(self.net, "head", None)
+        if head is None or not head.context:
+            return logits
+        return torch.cat([logits, head.context_maps(torch.cat([features, logits], 1))], 1)
 
 
 def _example_input(model: nn.Module, card: ModelCard, size: SensorSize) -> tuple[str, torch.Tensor]:
@@ -151,7 +159,7 @@ def onnx_bytes(
 def _export(model: nn.Module, card: ModelCard, size: SensorSize, opset: int) -> bytes:
     onnx = _need("onnx")
     graph, example = _example_input(model, card, size)
-    module = _MaskLogits(model) if graph == GRAPH_MASK else model
+    module = MaskOutputs(model) if graph == GRAPH_MASK else model
     names = ("features", "logits") if graph == GRAPH_MASK else ("voxels", "restored")
     buffer = io.BytesIO()
     with warnings.catch_warnings():
@@ -184,6 +192,7 @@ def _export(model: nn.Module, card: ModelCard, size: SensorSize, opset: int) -> 
         p = head.numpy_params()
         as_lists = {
             "features": list(p["features"]),
+            "context": int(p["context"]),
             "weights": [w.tolist() for w in p["weights"]],
             "biases": [b.tolist() for b in p["biases"]],
         }
@@ -333,8 +342,12 @@ def _head_params(session: Any, source: str) -> dict[str, Any] | None:
         return None
     try:
         raw = json.loads(text)
+        context = raw.get("context", 0)
+        if isinstance(context, bool) or not isinstance(context, int) or context < 0:
+            raise ValueError(f"context channels {context!r}")
         return {
             "features": check_feature_names(raw["features"], f"{source}: keep head"),
+            "context": context,
             "weights": [np.asarray(w, dtype=np.float32) for w in raw["weights"]],
             "biases": [np.asarray(b, dtype=np.float32) for b in raw["biases"]],
         }

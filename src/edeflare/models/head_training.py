@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import json
 import math
 import os
@@ -64,6 +65,7 @@ __all__ = [
     "HeadTrainingConfig",
     "choose_threshold",
     "collect_features",
+    "context_columns",
     "fit_head",
     "keep_labels",
     "train_head",
@@ -130,8 +132,16 @@ class HeadTrainingConfig:
     flare_free_windows: bool = False
     """Also learn from the windows of each pair's ground truth alone, every event kept: a
     flare-free recording of the same scene, its light included (every pair has one)."""
+    context: int = 0
+    """Channels of a learned whole-frame context (0: none): a cell U-Net on the network's
+    inputs and keep logits, trained with the head (:class:`EventHead`)."""
+    context_widths: tuple[int, ...] = (16, 32, 64, 64)
+    """Level widths of the context's U-Net."""
     epochs: int = 8
     batch_size: int = 4_096
+    """Events per step (a head without a context)."""
+    batch_windows: int = 8
+    """Windows per step (a head with a context: their events together)."""
     lr: float = 3e-3
     seed: int = 0
 
@@ -155,14 +165,21 @@ def collect_features(
     balanced: bool,
     progress: bool = True,
     desc: str = "features",
+    cell_scale: int = 8,
 ) -> dict[str, np.ndarray]:
     """Features, labels and each row's file index of the events drawn from ``files``.
 
     ``window_logits`` is the base network's per-event keep logits of a batch of
     windows (:meth:`~edeflare.models.infer.ModelDeflarer.window_logits`, no rules).
+    With a context (``config.context``), also each window's cells (``cells_NNNNNN``: the
+    network's inputs and keep logits), its sensor (``sizes``) and each row's window and
+    cell of ``cell_scale`` pixels (``window``, ``cell``).
     """
     rng = np.random.default_rng(config.seed)
     xs, ys, fs = [], [], []
+    # with a context: each window's cells (float16) and each row's window and cell
+    cells: list[np.ndarray] = []
+    wins, cell_of, sizes = [], [], []
     for k, path in enumerate(progress_bar(files, enabled=progress, desc=desc, unit="file")):
         inp, gt, size, start, end = read_sequence(path)
         labels = keep_labels(inp, gt, config.tolerance_us)
@@ -178,7 +195,12 @@ def collect_features(
         for events, truth, source in streams:
             for s, part in _windows(events, start, end, window_us):
                 ev = events[part]
-                logit = window_logits([(s, ev)], size)[0]
+                window_cells: list[np.ndarray] | None = None
+                if config.context:  # the cells the context reads, with the logits
+                    window_cells = []
+                    logit = window_logits([(s, ev)], size, cells=window_cells)[0]
+                else:
+                    logit = window_logits([(s, ev)], size)[0]
                 ctx = WindowContext(ev, size, covered_us(ev, s, window_us))
                 f = window_features(ctx, logit, config.features, window_us=window_us)
                 y = truth[part]
@@ -191,9 +213,26 @@ def collect_features(
                 xs.append(f[take])
                 ys.append(y[take])
                 fs.append(np.full(take.size, source, np.int32))
+                if window_cells is not None:
+                    wins.append(np.full(take.size, len(cells), np.int32))
+                    cell_of.append(_cell_index(ev[take], cell_scale, window_cells[0].shape[2]))
+                    cells.append(window_cells[0].astype(np.float16))
+                    sizes.append(size)
     if not xs:
         raise EdeflareError("no events to learn from in " + ", ".join(map(str, files[:3])))
-    return {"x": np.concatenate(xs), "y": np.concatenate(ys), "source": np.concatenate(fs)}
+    out = {"x": np.concatenate(xs), "y": np.concatenate(ys), "source": np.concatenate(fs)}
+    if config.context:
+        out.update(window=np.concatenate(wins), cell=np.concatenate(cell_of))
+        out["sizes"] = np.asarray(sizes, np.int32).reshape(-1, 2)
+        out.update({f"cells_{i:06d}": c for i, c in enumerate(cells)})
+    return out
+
+
+def _cell_index(events: np.ndarray, scale: int, width: int) -> np.ndarray:
+    """Each event's flat cell on a grid ``width`` cells wide of ``scale``-pixel cells (the
+    cell :func:`~edeflare.models.event_head.gather_context` reads)."""
+    y, x = events["y"].astype(np.int32) // scale, events["x"].astype(np.int32) // scale
+    return y * np.int32(width) + x
 
 
 def _component(path: Path, group: str) -> np.ndarray | None:
@@ -225,19 +264,87 @@ def _draw(rng: np.random.Generator, idx: np.ndarray, n: int) -> np.ndarray:
 # ----------------------------------------------------------------------------- fit
 
 
+def _class_weights(yt: torch.Tensor) -> torch.Tensor:
+    keep_share = float(yt.mean())
+    if not 0.0 < keep_share < 1.0:
+        raise EdeflareError("the training events are all of one class (all flare or all scene)")
+    return torch.where(yt > 0.5, 0.5 / keep_share, 0.5 / (1.0 - keep_share))
+
+
+def _window_cells(data: dict[str, np.ndarray], ids: Sequence[int]) -> torch.Tensor:
+    return torch.from_numpy(np.stack([data[f"cells_{i:06d}"] for i in ids]).astype(np.float32))
+
+
+def _window_batches(
+    data: dict[str, np.ndarray], per_batch: int, rng: np.random.Generator | None
+) -> list[list[int]]:
+    """Windows in batches of one sensor size (shuffled with ``rng``)."""
+    by_size: dict[tuple[int, int], list[int]] = {}
+    for i, size in enumerate(map(tuple, data["sizes"])):
+        by_size.setdefault(size, []).append(i)
+    out = []
+    for ids in by_size.values():
+        order = list(rng.permutation(ids)) if rng is not None else ids
+        out += [[int(i) for i in order[j : j + per_batch]] for j in range(0, len(order), per_batch)]
+    return [out[i] for i in rng.permutation(len(out))] if rng is not None else out
+
+
+def _rows_of(data: dict[str, np.ndarray]) -> list[np.ndarray]:
+    """Each window's rows (indices into ``x``)."""
+    order = np.argsort(data["window"], kind="stable")
+    bounds = np.searchsorted(data["window"][order], np.arange(len(data["sizes"]) + 1))
+    return [order[a:b] for a, b in itertools.pairwise(bounds)]
+
+
+def _context_batch(
+    head: EventHead, data: dict[str, np.ndarray], rows: list[np.ndarray], ids: list[int]
+) -> tuple[torch.Tensor, np.ndarray]:
+    """The features with their context columns of the rows of windows ``ids``, and the rows."""
+    maps = head.context_maps(_window_cells(data, ids))  # (B, k, h, w)
+    b, k, h, w = maps.shape
+    flat = maps.reshape(b, k, h * w)
+    idx = np.concatenate([rows[i] for i in ids])
+    which = np.concatenate([np.full(rows[i].size, j) for j, i in enumerate(ids)])
+    ctx = flat[torch.from_numpy(which), :, torch.from_numpy(data["cell"][idx].astype(np.int64))]
+    x = torch.from_numpy(np.ascontiguousarray(data["x"][idx], np.float32))
+    return torch.cat([x, ctx], 1), idx
+
+
+def context_columns(head: EventHead, data: dict[str, np.ndarray]) -> np.ndarray:
+    """Every row's features and context columns ``(n, features + k)`` (float32), as
+    :meth:`~edeflare.models.infer.ModelDeflarer.window_logits` gives them to the head."""
+    out = np.empty((data["x"].shape[0], head.columns), np.float32)
+    rows = _rows_of(data)
+    with torch.no_grad():
+        for ids in _window_batches(data, 8, None):
+            z, idx = _context_batch(head, data, rows, ids)
+            out[idx] = z.numpy()
+    return out
+
+
 def fit_head(
-    x: np.ndarray, y: np.ndarray, config: HeadTrainingConfig, *, progress: bool = True
+    x: np.ndarray | dict[str, np.ndarray],
+    y: np.ndarray,
+    config: HeadTrainingConfig,
+    *,
+    progress: bool = True,
 ) -> EventHead:
-    """A head fitted to features ``x`` and labels ``y`` (True: keep), classes weighed alike."""
+    """A head fitted to features ``x`` and labels ``y`` (True: keep), classes weighed alike.
+
+    With a context (``config.context``), ``x`` is :func:`collect_features`' whole output
+    (the windows' cells with the rows) and each step learns from the events of
+    ``config.batch_windows`` windows of one sensor size.
+    """
     torch.manual_seed(config.seed)
+    if config.context:
+        if not isinstance(x, dict):
+            raise EdeflareError("a head with a context learns from collect_features' windows")
+        return _fit_context_head(x, y, config, progress=progress)
     head = EventHead(config.features, config.hidden)
     xt = torch.from_numpy(np.ascontiguousarray(x, np.float32))
     yt = torch.from_numpy(y.astype(np.float32))
     head.standardise_on(xt)
-    keep_share = float(yt.mean())
-    if not 0.0 < keep_share < 1.0:
-        raise EdeflareError("the training events are all of one class (all flare or all scene)")
-    weight = torch.where(yt > 0.5, 0.5 / keep_share, 0.5 / (1.0 - keep_share))
+    weight = _class_weights(yt)
     opt = torch.optim.Adam(head.parameters(), lr=config.lr)
     steps = config.epochs * max(1, -(-len(yt) // config.batch_size))
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
@@ -251,6 +358,48 @@ def fit_head(
             logit = head(xt[b]) + LN3
             loss = torch.nn.functional.binary_cross_entropy_with_logits(
                 logit, yt[b], weight=weight[b]
+            )
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            sched.step()
+            bar.update()
+    bar.close()
+    return head.eval()
+
+
+def _fit_context_head(
+    data: dict[str, np.ndarray], y: np.ndarray, config: HeadTrainingConfig, *, progress: bool
+) -> EventHead:
+    cells0 = data["cells_000000"]
+    head = EventHead(
+        config.features,
+        config.hidden,
+        {"channels": config.context, "inputs": int(cells0.shape[0]),
+         "widths": list(config.context_widths)},
+    )  # fmt: skip
+    n = len(data["sizes"])
+    sample = [data[f"cells_{i:06d}"] for i in range(0, n, max(1, n // 64))]
+    flat = np.concatenate([c.reshape(c.shape[0], -1) for c in sample], 1).astype(np.float32)
+    head.standardise_on(  # the cells of windows of every size, as (1, channels, 1, cells)
+        torch.from_numpy(np.asarray(data["x"], np.float32)), torch.from_numpy(flat)[None, :, None]
+    )
+    yt = torch.from_numpy(y.astype(np.float32))
+    weight = _class_weights(yt)
+    rows = _rows_of(data)
+    rng = np.random.default_rng(config.seed)
+    per_epoch = len(_window_batches(data, config.batch_windows, None))
+    opt = torch.optim.Adam(head.parameters(), lr=config.lr)
+    steps = config.epochs * per_epoch
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
+    bar = progress_bar(total=steps, enabled=progress, desc="fit", unit="step")
+    head.train()
+    for _ in range(config.epochs):
+        for ids in _window_batches(data, config.batch_windows, rng):
+            z, idx = _context_batch(head, data, rows, ids)
+            b = torch.from_numpy(idx)
+            loss = torch.nn.functional.binary_cross_entropy_with_logits(
+                head(z) + LN3, yt[b], weight=weight[b]
             )
             opt.zero_grad()
             loss.backward()
@@ -311,6 +460,8 @@ def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kin
     fields = {k: v for k, v in dataclasses.asdict(config).items() if k in _FEATURE_FIELDS}
     if not fields["flare_free_windows"]:  # runs from before the option keep their features
         del fields["flare_free_windows"]
+    if config.context:  # the windows' cells are collected too
+        fields["cells"] = True
     h.update(json.dumps([fields, kind, "gt|light"], sort_keys=True).encode())
     for f in files:
         h.update(f"{f.parent.parent.name}/{f.parent.name}/{f.name}:{f.stat().st_size}".encode())
@@ -367,14 +518,15 @@ def train_head(
             run / f"features-{split}-{key}.npz",
             lambda files=files, balanced=balanced, split=split: collect_features(
                 files, deflarer.window_logits, deflarer.window_us, config,
-                balanced=balanced, progress=progress, desc=split,
+                balanced=balanced, progress=progress, desc=split, cell_scale=net.scale,
             ),
         )  # fmt: skip
     train, val = sets["train"], sets["test"]
-    head = fit_head(train["x"], train["y"], config, progress=progress)
+    head = fit_head(train if config.context else train["x"], train["y"], config, progress=progress)
     val_files = summary_files["test"]
     groups = np.array([_group(val_files, int(i)) for i in val["source"]])
-    logits = head_logits(head.numpy_params(), val["x"])
+    columns = context_columns(head, val) if config.context else val["x"]
+    logits = head_logits(head.numpy_params(), columns)
     threshold, table = choose_threshold(logits, val["y"], groups)
     net.head = head
     card = dataclasses.replace(

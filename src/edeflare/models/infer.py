@@ -47,8 +47,8 @@ from ..rules import RULES, RuleSet, WindowContext
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .event_features import window_features
-from .event_head import EventHead, head_logits
-from .export import GRAPH_MASK, OnnxNetwork, onnx_bytes
+from .event_head import EventHead, gather_context, head_logits
+from .export import GRAPH_MASK, MaskOutputs, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet
 from .mask_kernels import (
     event_features,
@@ -369,7 +369,7 @@ class ModelDeflarer:
         threads = 1 if mask and self.device.type == "cpu" else 0
         with torch.inference_mode(), _torch_threads(threads), _full_precision(self.device):
             t = torch.from_numpy(x).to(self.device)
-            y = self.model.logits(t) if mask else self.model(t)  # type: ignore[operator]
+            y = MaskOutputs(self.model)(t) if mask else self.model(t)  # type: ignore[arg-type]
             return y.float().cpu().numpy()
 
     def network_output(
@@ -444,14 +444,20 @@ class ModelDeflarer:
             yield from self._run(batch, sensor_size, lo, hi)
 
     def window_logits(
-        self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
+        self,
+        batch: list[tuple[int, np.ndarray]],
+        sensor_size: SensorSize,
+        *,
+        cells: list[np.ndarray] | None = None,
     ) -> list[np.ndarray]:
         """A mask model's per-event keep logits for ``(window_start_us, events)`` windows.
 
         One network call for the batch; windows may start anywhere (aligned or
         not). An event is kept where its logit exceeds
         :func:`~edeflare.models.mask_kernels.keep_logit_threshold` of
-        :attr:`keep_threshold`.
+        :attr:`keep_threshold`. ``cells``, a list, receives each window's cells as a
+        keep head's context reads them: the network's inputs and its keep logits
+        ``(2 (2 bins) + 1, h, w)``.
 
         Examples
         --------
@@ -481,9 +487,14 @@ class ModelDeflarer:
             ]
         )
         logits = self._network(feats, sensor_size, True)
+        head = self.head_params
+        # a head's context maps follow the logits in the network's output
+        maps = logits[:, 2 * net.bins :] if head is not None and head["context"] else None
+        logits = logits[:, : 2 * net.bins]
+        if cells is not None:
+            cells.extend(np.concatenate([feats, logits], 1))
         # each event's support, for the light-free rule and the head: free with the
         # refinement's counts
-        head = self.head_params
         need = self.rules.needs_support or head is not None
         supports = [np.empty(ev.size, np.int64) if need else None for _, ev in batch]
         out = [
@@ -502,6 +513,8 @@ class ModelDeflarer:
             ctx = WindowContext(events, sensor_size, covered_us(events, start, w), support)
             if head is not None:
                 features = window_features(ctx, v, head["features"], window_us=w)
+                if maps is not None:
+                    features = np.hstack([features, gather_context(maps[k], events, scale)])
                 v = out[k] = head_logits(head, features)
             if self.rules.active:
                 self.rules.apply(v, ctx)

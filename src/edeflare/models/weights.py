@@ -270,6 +270,13 @@ def card_model(path: Path, preset: str, head: Mapping[str, Any] | None) -> nn.Mo
         raise WeightsError(f"{path}: {exc}") from None
     if head:  # the learned keep head rides with the network, as its submodule
         model.head = EventHead(**head)
+        context = model.head.context
+        bins = getattr(model, "bins", None)
+        if context and bins is not None and context["inputs"] != 4 * bins + 1:
+            raise WeightsError(
+                f"{path}: the keep head's context reads {context['inputs']} channels of cells; "
+                f"a {preset} network gives {4 * bins + 1} ({bins} bins)"
+            )
     return model
 
 
