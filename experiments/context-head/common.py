@@ -22,6 +22,7 @@ from edeflare.models.weights import read_card
 from edeflare.rules import WindowContext
 
 LN3 = float(np.log(3.0))
+LIGHT_FREE = list(FEATURES).index("light_free")
 CELL = 8
 
 
@@ -84,12 +85,20 @@ class ContextHead(nn.Module):
     def forward(self, feats: torch.Tensor, ctx_rows: torch.Tensor | None) -> torch.Tensor:
         z = (feats - self.mean) / self.scale
         if self.k:
-            z = torch.cat([z, ctx_rows], 1)
+            z = torch.cat([z, self.gate(feats, ctx_rows)], 1)
         for i, layer in enumerate(self.mlp):
             z = layer(z)
             if i < len(self.mlp) - 1:
                 z = torch.relu(z)
         return z[:, 0]
+
+    gate_light_free = False
+    """Zero the context of events in windows without a light (its light_free feature)."""
+
+    def gate(self, feats: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
+        if not self.gate_light_free:
+            return rows
+        return rows * (1.0 - feats[:, LIGHT_FREE : LIGHT_FREE + 1])
 
     def rows(self, c: torch.Tensor, win: torch.Tensor, cell: torch.Tensor) -> torch.Tensor:
         """Context rows of events: window ``win`` of the batch, flat ``cell``."""

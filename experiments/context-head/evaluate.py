@@ -48,6 +48,7 @@ class CtxMethod(Method):
             tuple(map(int, a["widths"].split(","))),
         )
         self.model.load_state_dict(st)
+        self.model.gate_light_free = a.get("gate") == "True"
         self.model.eval()
         self.thr = float(s["threshold"])
         self.d = night_deflarer()

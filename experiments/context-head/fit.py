@@ -89,6 +89,7 @@ def main():
     ap.add_argument("data", type=Path, nargs="+")
     ap.add_argument("--val", type=Path, nargs="+", help="test splits scored (default: data)")
     ap.add_argument("--ctx-drop", type=float, default=0.0)
+    ap.add_argument("--gate", action="store_true", help="no context in light-free windows")
     ap.add_argument("--k", type=int, default=8)
     ap.add_argument("--hidden", default="64,32")
     ap.add_argument("--widths", default="16,32,64,64")
@@ -110,6 +111,7 @@ def main():
         tuple(map(int, a.hidden.split(","))),
         tuple(map(int, a.widths.split(","))),
     )
+    model.gate_light_free = a.gate
     model.mean.copy_(torch.from_numpy(tr["x"].mean(0)))
     model.scale.copy_(torch.from_numpy(tr["x"].std(0) + 1e-6))
     sample = np.stack([c.astype(np.float32).reshape(c.shape[0], -1).mean(1) for c in tr["ctx"]])
