@@ -68,10 +68,9 @@ def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, A
             raise ParameterError(
                 f"{where}: context holds channels, inputs and widths, got {sorted(context)}"
             )
-        (channels, inputs), widths = (
-            _widths([context["channels"], context["inputs"]], f"{where}: context sizes"),
-            _widths(context["widths"], f"{where}: context widths"),
-        )
+        sizes = [context["channels"], context["inputs"]]
+        channels, inputs = _widths(sizes, f"{where}: context sizes")
+        widths = _widths(context["widths"], f"{where}: context widths")
         if not widths:
             raise ParameterError(f"{where}: context widths must not be empty")
         out["context"] = {"channels": channels, "inputs": inputs, "widths": widths}

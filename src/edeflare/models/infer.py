@@ -457,7 +457,7 @@ class ModelDeflarer:
         :func:`~edeflare.models.mask_kernels.keep_logit_threshold` of
         :attr:`keep_threshold`. ``cells``, a list, receives each window's cells as a
         keep head's context reads them: the network's inputs and its keep logits
-        ``(2 (2 bins) + 1, h, w)``.
+        ``(4 bins + 1, h, w)``.
 
         Examples
         --------
