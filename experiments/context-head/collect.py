@@ -19,7 +19,7 @@ from edeflare.models.head_training import _component, _draw, keep_labels
 PER_CLASS, VAL_PER_WINDOW = 2_000, 20_000
 
 
-def collect(files, d, balanced, out: Path, seed=0):
+def collect(files, d, balanced, out: Path, seed=0, lights=False):
     if out.exists():
         print("have", out)
         return
@@ -43,7 +43,7 @@ def collect(files, d, balanced, out: Path, seed=0):
                 if hi <= lo:
                     continue
                 ev, y = events[lo:hi], truth[lo:hi]
-                c, f, cell = window_inputs(d, ev, s, size)
+                c, f, cell = window_inputs(d, ev, s, size, lights)
                 if balanced:
                     take = np.concatenate(
                         [_draw(rng, np.flatnonzero(y == v), PER_CLASS) for v in (0, 1)]
@@ -84,7 +84,7 @@ def main():
     folders = dataset_folders(data)
     for split, balanced in (("test", False), ("train", True)):
         files = [f for fo in folders if (fo / split).is_dir() for f in list_sequences(fo / split)]
-        collect(files, d, balanced, run / f"{split}.npz")
+        collect(files, d, balanced, run / f"{split}.npz", lights="--lights" in sys.argv)
 
 
 if __name__ == "__main__":

@@ -34,8 +34,9 @@ def night_deflarer() -> ModelDeflarer:
     return d
 
 
-def window_inputs(d: ModelDeflarer, ev: np.ndarray, start: int, size) -> tuple:
-    """(context input (33, h, w) float32, features (n, 21) float32, cell (n,) int64)."""
+def window_inputs(d: ModelDeflarer, ev: np.ndarray, start: int, size, lights=False) -> tuple:
+    """(context input (33, h, w) float32, features (n, 21) float32, cell (n,) int64);
+    ``lights``: a 34th channel, 1 on the window's light cells."""
     net, w = d.model, d.window_us
     rec = event_records(ev, start, w, net.bins, size)
     cellf = event_features(ev, size, start, w, net.bins, net.scale, records=rec)
@@ -56,7 +57,10 @@ def window_inputs(d: ModelDeflarer, ev: np.ndarray, start: int, size) -> tuple:
     f = window_features(ctx, v, tuple(FEATURES), window_us=w)
     cw = -(-int(size[0]) // CELL)
     cell = (ev["y"].astype(np.int64) // CELL) * cw + ev["x"].astype(np.int64) // CELL
-    return np.concatenate([cellf, low]).astype(np.float32), f, cell
+    parts = [cellf, low]
+    if lights:
+        parts.append(ctx.lights[None].astype(np.float32))
+    return np.concatenate(parts).astype(np.float32), f, cell
 
 
 class ContextHead(nn.Module):

@@ -46,6 +46,7 @@ class CtxMethod(Method):
             int(a["k"]),
             tuple(map(int, a["hidden"].split(","))),
             tuple(map(int, a["widths"].split(","))),
+            in_ch=int(st["cmean"].shape[0]),
         )
         self.model.load_state_dict(st)
         self.model.gate_light_free = a.get("gate") == "True"
@@ -54,7 +55,8 @@ class CtxMethod(Method):
         self.d = night_deflarer()
 
     def keep(self, start: int, ev: np.ndarray, size) -> np.ndarray:
-        c, f, cell = window_inputs(self.d, ev, start, size)
+        lights = self.model.cmean.shape[0] == 34  # a light-map channel
+        c, f, cell = window_inputs(self.d, ev, start, size, lights)
         with torch.no_grad():
             x = torch.from_numpy(f)
             rows = None

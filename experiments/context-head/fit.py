@@ -110,6 +110,7 @@ def main():
         a.k,
         tuple(map(int, a.hidden.split(","))),
         tuple(map(int, a.widths.split(","))),
+        in_ch=tr["ctx"][0].shape[0],
     )
     model.gate_light_free = a.gate
     model.mean.copy_(torch.from_numpy(tr["x"].mean(0)))
