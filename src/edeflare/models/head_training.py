@@ -42,7 +42,7 @@ import itertools
 import json
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -345,22 +345,42 @@ def fit_head(
     yt = torch.from_numpy(y.astype(np.float32))
     head.standardise_on(xt)
     weight = _class_weights(yt)
-    opt = torch.optim.Adam(head.parameters(), lr=config.lr)
-    steps = config.epochs * max(1, -(-len(yt) // config.batch_size))
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
     gen = torch.Generator().manual_seed(config.seed)
+    size = config.batch_size
+
+    def epochs() -> Iterator[Iterator[torch.Tensor]]:
+        for _ in range(config.epochs):
+            order = torch.randperm(len(yt), generator=gen)
+            yield (order[lo : lo + size] for lo in range(0, len(yt), size))
+
+    def loss(b: torch.Tensor) -> torch.Tensor:
+        return torch.nn.functional.binary_cross_entropy_with_logits(
+            head(xt[b]) + LN3, yt[b], weight=weight[b]
+        )
+
+    steps = config.epochs * max(1, -(-len(yt) // size))
+    return _optimise(head, config, steps, epochs(), loss, progress)
+
+
+def _optimise(
+    head: EventHead,
+    config: HeadTrainingConfig,
+    steps: int,
+    epochs: Iterable[Iterable[Any]],
+    loss: Callable[[Any], torch.Tensor],
+    progress: bool,
+) -> EventHead:
+    """Adam with a one-cycle schedule over ``steps`` batches (``epochs``: each epoch's
+    batches, ``loss``: a batch's loss); the head in eval mode."""
+    opt = torch.optim.Adam(head.parameters(), lr=config.lr)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
     bar = progress_bar(total=steps, enabled=progress, desc="fit", unit="step")
     head.train()
-    for _ in range(config.epochs):
-        order = torch.randperm(len(yt), generator=gen)
-        for lo in range(0, len(yt), config.batch_size):
-            b = order[lo : lo + config.batch_size]
-            logit = head(xt[b]) + LN3
-            loss = torch.nn.functional.binary_cross_entropy_with_logits(
-                logit, yt[b], weight=weight[b]
-            )
+    for batches in epochs:
+        for batch in batches:
+            value = loss(batch)
             opt.zero_grad()
-            loss.backward()
+            value.backward()
             opt.step()
             sched.step()
             bar.update()
@@ -388,26 +408,20 @@ def _fit_context_head(
     weight = _class_weights(yt)
     rows = _rows_of(data)
     rng = np.random.default_rng(config.seed)
-    per_epoch = len(_window_batches(data, config.batch_windows, None))
-    opt = torch.optim.Adam(head.parameters(), lr=config.lr)
-    steps = config.epochs * per_epoch
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
-    bar = progress_bar(total=steps, enabled=progress, desc="fit", unit="step")
-    head.train()
-    for _ in range(config.epochs):
-        for ids in _window_batches(data, config.batch_windows, rng):
-            z, idx = _context_batch(head, data, rows, ids)
-            b = torch.from_numpy(idx)
-            loss = torch.nn.functional.binary_cross_entropy_with_logits(
-                head(z) + LN3, yt[b], weight=weight[b]
-            )
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
-            bar.update()
-    bar.close()
-    return head.eval()
+
+    def epochs() -> Iterator[list[list[int]]]:
+        for _ in range(config.epochs):
+            yield _window_batches(data, config.batch_windows, rng)
+
+    def loss(ids: list[int]) -> torch.Tensor:
+        z, idx = _context_batch(head, data, rows, ids)
+        b = torch.from_numpy(idx)
+        return torch.nn.functional.binary_cross_entropy_with_logits(
+            head(z) + LN3, yt[b], weight=weight[b]
+        )
+
+    steps = config.epochs * len(_window_batches(data, config.batch_windows, None))
+    return _optimise(head, config, steps, epochs(), loss, progress)
 
 
 def choose_threshold(
