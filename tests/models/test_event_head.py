@@ -470,3 +470,22 @@ def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng):
         for p in head.parameters():
             torch.nn.init.normal_(p, std=0.5)
     assert_onnx_decides_alike(tmp_path, rng, head, kept_share=(0.05, 0.95))
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--context", "-1"], "--context must be 0 or more, got -1"),
+        (["--context", "2", "--context-widths", ""], "--context-widths needs at least one width"),
+        (["--context-widths", "8,0"], "widths must be positive integers"),
+    ],
+)
+def test_train_head_refuses_a_bad_context_before_reading_data(tmp_path, capsys, args, message):
+    from edeflare.cli import main
+
+    try:  # argparse exits on a value it cannot parse; the command returns on the others
+        code = main(["train-head", str(tmp_path / "none"), "--out", str(tmp_path / "run"), *args])
+    except SystemExit as exc:
+        code = exc.code
+    assert code != 0 and message in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
