@@ -25,14 +25,15 @@ from edeflare.methods import Method, create_method
 from edeflare.methods.windows import WindowStreamer
 from edeflare.models.infer import bundled_weights
 
-REAL = Path("/work/shared/data/real")
+REPO = Path(__file__).resolve().parents[2]
+REAL = REPO.parent / "shared" / "data" / "real"  # ../shared beside the checkout
 LIGHTS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
 NO_LIGHT = (
     "davis346_street_cars.aedat4",
     "davis346_lowlight_cradle.aedat4",
     "prophesee_gen41_street.raw",
 )
-FORWARD = Path("/work/main/benchmarks/.data/eflare-forward/test")
+FORWARD = REPO / "benchmarks" / ".data" / "eflare-forward" / "test"  # flare_targets.py makes it
 
 
 class CtxMethod(Method):
