@@ -32,7 +32,7 @@ from torch import nn
 from ..errors import ParameterError
 from .event_features import check_feature_names
 
-__all__ = ["HEAD_BLOCK", "EventHead", "gather_context", "head_logits", "head_spec"]
+__all__ = ["HEAD_BLOCK", "EventHead", "event_cells", "gather_context", "head_logits", "head_spec"]
 
 
 def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, Any]:
@@ -219,8 +219,21 @@ def gather_context(maps: np.ndarray, events: np.ndarray, scale: int) -> np.ndarr
     [[0.0, 6.0], [5.0, 11.0]]
     """
     k, h, w = maps.shape
-    cell = (events["y"].astype(np.intp) // scale) * w + events["x"].astype(np.intp) // scale
+    cell = event_cells(events, scale, w)
     return np.ascontiguousarray(maps.reshape(k, h * w)[:, cell].T, dtype=np.float32)
+
+
+def event_cells(events: np.ndarray, scale: int, cells_wide: int) -> np.ndarray:
+    """Each event's flat cell on a grid ``cells_wide`` cells wide of ``scale``-pixel cells.
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> event_cells(make_events([0, 1], [0, 9], [0, 5], [1, 0]), 4, 3).tolist()
+    [0, 5]
+    """
+    y, x = events["y"].astype(np.intp) // scale, events["x"].astype(np.intp) // scale
+    return y * cells_wide + x
 
 
 HEAD_BLOCK = 65_536

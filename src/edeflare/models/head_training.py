@@ -59,13 +59,14 @@ from ..io.sequence import file_sha256, list_sequences, read_sequence
 from ..lights.cells import covered_us
 from ..rules import WindowContext
 from .event_features import FEATURES, window_features
-from .event_head import EventHead, head_logits
+from .event_head import EventHead, event_cells, head_logits
 
 __all__ = [
     "HeadTrainingConfig",
     "choose_threshold",
     "collect_features",
     "context_columns",
+    "fit_context_head",
     "fit_head",
     "keep_labels",
     "train_head",
@@ -215,7 +216,8 @@ def collect_features(
                 fs.append(np.full(take.size, source, np.int32))
                 if window_cells is not None:
                     wins.append(np.full(take.size, len(cells), np.int32))
-                    cell_of.append(_cell_index(ev[take], cell_scale, window_cells[0].shape[2]))
+                    cells_wide = window_cells[0].shape[2]
+                    cell_of.append(event_cells(ev[take], cell_scale, cells_wide).astype(np.int32))
                     cells.append(window_cells[0].astype(np.float16))
                     sizes.append(size)
     if not xs:
@@ -226,13 +228,6 @@ def collect_features(
         out["sizes"] = np.asarray(sizes, np.int32).reshape(-1, 2)
         out.update({f"cells_{i:06d}": c for i, c in enumerate(cells)})
     return out
-
-
-def _cell_index(events: np.ndarray, scale: int, width: int) -> np.ndarray:
-    """Each event's flat cell on a grid ``width`` cells wide of ``scale``-pixel cells (the
-    cell :func:`~edeflare.models.event_head.gather_context` reads)."""
-    y, x = events["y"].astype(np.int32) // scale, events["x"].astype(np.int32) // scale
-    return y * np.int32(width) + x
 
 
 def _component(path: Path, group: str) -> np.ndarray | None:
@@ -323,23 +318,11 @@ def context_columns(head: EventHead, data: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def fit_head(
-    x: np.ndarray | dict[str, np.ndarray],
-    y: np.ndarray,
-    config: HeadTrainingConfig,
-    *,
-    progress: bool = True,
+    x: np.ndarray, y: np.ndarray, config: HeadTrainingConfig, *, progress: bool = True
 ) -> EventHead:
-    """A head fitted to features ``x`` and labels ``y`` (True: keep), classes weighed alike.
-
-    With a context (``config.context``), ``x`` is :func:`collect_features`' whole output
-    (the windows' cells with the rows) and each step learns from the events of
-    ``config.batch_windows`` windows of one sensor size.
-    """
+    """A head fitted to features ``x`` and labels ``y`` (True: keep), classes weighed alike
+    (without a context: :func:`fit_context_head` learns one)."""
     torch.manual_seed(config.seed)
-    if config.context:
-        if not isinstance(x, dict):
-            raise EdeflareError("a head with a context learns from collect_features' windows")
-        return _fit_context_head(x, y, config, progress=progress)
     head = EventHead(config.features, config.hidden)
     xt = torch.from_numpy(np.ascontiguousarray(x, np.float32))
     yt = torch.from_numpy(y.astype(np.float32))
@@ -388,9 +371,14 @@ def _optimise(
     return head.eval()
 
 
-def _fit_context_head(
-    data: dict[str, np.ndarray], y: np.ndarray, config: HeadTrainingConfig, *, progress: bool
+def fit_context_head(
+    data: dict[str, np.ndarray], config: HeadTrainingConfig, *, progress: bool = True
 ) -> EventHead:
+    """A head with a context of ``config.context`` maps fitted to :func:`collect_features`'
+    output (the rows with their windows' cells): each step learns from the drawn events of
+    ``config.batch_windows`` windows of one sensor size, classes weighed alike."""
+    torch.manual_seed(config.seed)
+    y = data["y"]
     cells0 = data["cells_000000"]
     head = EventHead(
         config.features,
@@ -536,7 +524,11 @@ def train_head(
             ),
         )  # fmt: skip
     train, val = sets["train"], sets["test"]
-    head = fit_head(train if config.context else train["x"], train["y"], config, progress=progress)
+    head = (
+        fit_context_head(train, config, progress=progress)
+        if config.context
+        else fit_head(train["x"], train["y"], config, progress=progress)
+    )
     val_files = summary_files["test"]
     groups = np.array([_group(val_files, int(i)) for i in val["source"]])
     columns = context_columns(head, val) if config.context else val["x"]

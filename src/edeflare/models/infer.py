@@ -321,6 +321,8 @@ class ModelDeflarer:
             raise EdeflareError(f"{weights}: a keep head needs a mask model, not a {card.preset}")
         self.model: torch.nn.Module = model
         self.card: ModelCard = card
+        # the mask graph's outputs (logits, and a keep head's context maps after them)
+        self._mask_outputs = MaskOutputs(model) if isinstance(model, FlareMaskNet) else None
         fast_onnx = runtime == "auto" and isinstance(model, FlareMaskNet) and _onnx_installed()
         self.runtime = (
             "onnx"
@@ -369,7 +371,7 @@ class ModelDeflarer:
         threads = 1 if mask and self.device.type == "cpu" else 0
         with torch.inference_mode(), _torch_threads(threads), _full_precision(self.device):
             t = torch.from_numpy(x).to(self.device)
-            y = MaskOutputs(self.model)(t) if mask else self.model(t)  # type: ignore[arg-type]
+            y = self._mask_outputs(t) if mask else self.model(t)
             return y.float().cpu().numpy()
 
     def network_output(
