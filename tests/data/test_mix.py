@@ -89,14 +89,24 @@ def test_the_day_mix_stores_day_streets_at_the_larger_sensors(tmp_path):
     # there), under eflare-night's weak lights and the forward model's strong sources,
     # the scene alone stored in every part
     full = RECIPES["eflare-day"]
-    assert full.part_names == ("day-640", "day-1280", "dense-day-640", "dense-day-1280")
+    assert full.part_names == ("day-640", "day-1280", "dense-day-640", "dense-day-1280",
+                               "drive-640", "drive-1280")  # fmt: skip
     assert [full.part(n).sensor_size for n in full.part_names] == [
-        (640, 480), (1280, 720), (640, 480), (1280, 720)]  # fmt: skip
+        (640, 480), (1280, 720), (640, 480), (1280, 720), (640, 480), (1280, 720)]  # fmt: skip
     day_scene = RECIPES["eflare-day-street"].scene
     assert full.part("day-640").scene == day_scene
     assert full.part("day-1280").scene.sky_level == day_scene.sky_level
     assert full.part("day-1280").scene.pan_px_per_s == (30.0, 300.0)  # x1.5 at 1280x720
     assert full.part("dense-day-640").config.variant == "forward"
+    # driving: the same street expanding faster than any other street
+    assert full.part("drive-640").scene.zoom_per_s == (1.0, 3.0)
+    assert full.part("drive-640").scene.sky_level == day_scene.sky_level
+    assert full.part("drive-1280").scene.pan_px_per_s == (0.0, 120.0)
+    assert max(r.scene.zoom_per_s[1] for name in RECIPES.names() if name != "eflare-day"
+               for r in ([p for _, p in RECIPES[name].parts] if isinstance(RECIPES[name], Mix)
+                         else [RECIPES[name]]) if r.scene is not None) <= 0.8  # fmt: skip
+    assert full.part("drive-640").config.variant == "forward"
+    assert full.part("drive-1280").config.variant != "forward"
     small = full.replace(sequences=1, test_sequences=0, sensor_size=(48, 36), duration_us=20_000)
     generate_dataset(small, tmp_path, progress=False)
     for part in full.part_names:

@@ -674,10 +674,22 @@ _GAPS_PARTS = (
 # streets only: eflare-night's weak lights and sensing (sparse flare) and the forward model's
 # strong sources (dense flare) over a street lit as by day, at 640x480 and 1280x720, each
 # storing the scene alone (a dense day scene without a light, every event kept). Pixel
-# ranges x1.5 at 1280x720 as for eflare-mix. Seeds no other recipe uses. 543 s for the 50
-# sequences with --workers 2 on a 2-core machine (about 2 GB).
+# ranges x1.5 at 1280x720 as for eflare-mix. Seeds no other recipe uses. 543 s for the
+# first four parts' 50 sequences with --workers 2 on a 2-core machine (about 2 GB).
 _DAY_SCENE_HD = dataclasses.replace(
     _DAY_SCENE, pan_px_per_s=(20.0 * _HD, 200.0 * _HD), shake_px=(0.0, 1.5 * _HD)
+)
+# Driving: the day street seen from a car moving forward, the expansion about the focus
+# 1-3 per second (eflare-day-street's streets expand at most 0.8 per second), so that a
+# large radial flow without a light is seen as scene. A point 400 px from the focus moves
+# 400-1,200 px/s, so a dense fan of streaks radiates from the focus as from a light. Its
+# texture is fainter (eflare-day-street's contrast at this speed fires nearly every pixel
+# in every millisecond: 140 events per pixel and second at 640x480; this about 30-70).
+_DRIVE_SCENE = dataclasses.replace(
+    _DAY_SCENE, zoom_per_s=(1.0, 3.0), pan_px_per_s=(0.0, 80.0), texture_contrast=(0.05, 0.2)
+)
+_DRIVE_SCENE_HD = dataclasses.replace(
+    _DRIVE_SCENE, pan_px_per_s=(0.0, 80.0 * _HD), shake_px=(0.0, 1.5 * _HD)
 )
 _DAY_PARTS = (
     (
@@ -726,6 +738,30 @@ _DAY_PARTS = (
             seed=211,
             scene=_DAY_SCENE_HD,
             config=_FORWARD_HD,
+        ),
+    ),
+    (
+        "drive-640",
+        Recipe(
+            name="eflare-day.drive-640",
+            sequences=14,
+            test_sequences=2,
+            sensor_size=(640, 480),
+            seed=214,
+            scene=_DRIVE_SCENE,
+            config=_FORWARD,
+        ),
+    ),
+    (
+        "drive-1280",
+        Recipe(
+            name="eflare-day.drive-1280",
+            sequences=8,
+            test_sequences=1,
+            sensor_size=(1280, 720),
+            seed=215,
+            scene=_DRIVE_SCENE_HD,
+            config=FlareConfig(script=_NIGHT_HD_SCRIPT, sensing=_NIGHT_SENSING),
         ),
     ),
 )
@@ -812,7 +848,8 @@ on 2 cores (the one-sequence times are in the comment above ``_MIX_PARTS``); and
 and ``sparse-346`` (eflare-night-sparse, 30); and the :class:`Mix` ``eflare-day``, day
 streets at the larger sensors: ``day-640`` and ``day-1280`` (eflare-night's weak lights, 18
 and 9), ``dense-day-640`` and ``dense-day-1280`` (the forward model's strong sources, 16
-and 7), the scene alone stored in each (about 9 minutes with ``--workers 2``)."""
+and 7), ``drive-640`` and ``drive-1280`` (the street seen from a car driving forward, under
+strong sources, 14, and weak lights, 8), the scene alone stored in each."""
 
 
 def list_recipes() -> list[str]:
