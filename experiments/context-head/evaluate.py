@@ -2,6 +2,7 @@
 `general` and `night` with one windowing.
 
     python experiments/context-head/evaluate.py RUN [RUN ...] --out results.json
+    python experiments/context-head/evaluate.py RUN [RUN ...] --ensemble --out results.json
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ class CtxMethod(Method):
         self.thr = float(s["threshold"])
         self.d = night_deflarer()
 
-    def keep(self, start: int, ev: np.ndarray, size) -> np.ndarray:
+    def probability(self, start: int, ev: np.ndarray, size) -> np.ndarray:
         lights = self.model.cmean.shape[0] == 34  # a light-map channel
         c, f, cell = window_inputs(self.d, ev, start, size, lights)
         with torch.no_grad():
@@ -65,7 +66,10 @@ class CtxMethod(Method):
                 win = torch.zeros(ev.size, dtype=torch.long)
                 rows = self.model.rows(torch.from_numpy(c)[None], win, torch.from_numpy(cell))
             v = self.model(x, rows).numpy()
-        return 1 / (1 + np.exp(-(v + LN3))) > self.thr
+        return 1 / (1 + np.exp(-(v + LN3)))
+
+    def keep(self, start: int, ev: np.ndarray, size) -> np.ndarray:
+        return self.probability(start, ev, size) > self.thr
 
     def streamer(self, sensor_size, *, rng=None, prepared=None):  # type: ignore[no-untyped-def]
         def transform(batch, span):
@@ -74,13 +78,31 @@ class CtxMethod(Method):
         return WindowStreamer(self.d.window_us, transform)
 
 
+class EnsembleMethod(CtxMethod):
+    """Several fitted heads: the mean of their keep probabilities against their mean threshold."""
+
+    def __init__(self, runs: list[Path]) -> None:
+        Method.__init__(self)
+        self.members = [CtxMethod(r) for r in runs]
+        self.d = self.members[0].d
+        self.thr = float(np.mean([m.thr for m in self.members]))
+
+    def keep(self, start: int, ev: np.ndarray, size) -> np.ndarray:
+        p = np.mean([m.probability(start, ev, size) for m in self.members], axis=0)
+        return p > self.thr
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("runs", nargs="+", type=Path)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--no-reference", action="store_true", help="leave out general/night")
+    ap.add_argument("--ensemble", action="store_true", help="score the runs' mean as one head")
     a = ap.parse_args()
-    methods = {r.name: CtxMethod(r) for r in a.runs}
+    if a.ensemble:
+        methods = {"ensemble": EnsembleMethod(a.runs)}
+    else:
+        methods = {r.name: CtxMethod(r) for r in a.runs}
     if not a.no_reference:
         methods["general-1view"] = create_method(
             "model", weights=str(bundled_weights("general")), phase_shift_us=0
