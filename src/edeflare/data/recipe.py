@@ -683,8 +683,9 @@ _DAY_SCENE_HD = dataclasses.replace(
 # 1-3 per second (eflare-day-street's streets expand at most 0.8 per second), so that a
 # large radial flow without a light is seen as scene. A point 400 px from the focus moves
 # 400-1,200 px/s, so a dense fan of streaks radiates from the focus as from a light. Its
-# texture is fainter (eflare-day-street's contrast at this speed fires nearly every pixel
-# in every millisecond: 140 events per pixel and second at 640x480; this about 30-70).
+# texture is fainter: eflare-day-street's contrast at this speed fired about 140 events per
+# pixel and second in a 640x480 trial; with this, 27-142 (the first eight training
+# sequences of each size), as many as the still day streets (day-640: 15-143).
 _DRIVE_SCENE = dataclasses.replace(
     _DAY_SCENE, zoom_per_s=(1.0, 3.0), pan_px_per_s=(0.0, 80.0), texture_contrast=(0.05, 0.2)
 )
