@@ -78,6 +78,38 @@ class CtxMethod(Method):
         return WindowStreamer(self.d.window_us, transform)
 
 
+def score_real(methods: dict[str, Method], out: dict) -> None:
+    """Score ``methods`` on the real recordings into ``out["real"]`` and ``out["no_light"]``."""
+    from edeflare.methods.base import METHODS
+
+    for name, m in methods.items():
+        key = f"study-{name}"
+        if key not in METHODS:
+            METHODS.register(key, lambda m=m: m)
+    for rec in LIGHTS:
+        r = score_recording(
+            REAL / rec, [f"study-{n}" for n in methods], lights=bundled_lights(rec), phases=4
+        )
+        for row in r.rows:
+            out["real"].setdefault(rec, {})[row.method] = {
+                "flare removed": row.flare_removed,
+                "light kept": row.light_kept,
+                "background kept": row.background_kept,
+                "combined": row.combined,
+            }
+            print(
+                f"{rec[:20]} {row.method:22s} flare {row.flare_removed:.3f} light "
+                f"{row.light_kept:.3f} bg {row.background_kept:.3f} comb {row.combined:.3f}",
+                flush=True,
+            )
+    for rec in NO_LIGHT:
+        r = read_events(REAL / rec)
+        for name, m in methods.items():
+            kept = m(r.events, r.sensor_size).size / r.events.size
+            out["no_light"].setdefault(rec, {})[name] = kept
+            print(f"{rec[:20]} {name:22s} kept {kept:.3f}", flush=True)
+
+
 class EnsembleMethod(CtxMethod):
     """Several fitted heads: the mean of their keep probabilities against their mean threshold."""
 
@@ -123,34 +155,7 @@ def main():
             flush=True,
         )
     print(f"{time.time() - t0:.0f}s", flush=True)
-    from edeflare.methods.base import METHODS
-
-    for name, m in methods.items():
-        key = f"study-{name}"
-        if key not in METHODS:
-            METHODS.register(key, lambda m=m: m)
-    for rec in LIGHTS:
-        r = score_recording(
-            REAL / rec, [f"study-{n}" for n in methods], lights=bundled_lights(rec), phases=4
-        )
-        for row in r.rows:
-            out["real"].setdefault(rec, {})[row.method] = {
-                "flare removed": row.flare_removed,
-                "light kept": row.light_kept,
-                "background kept": row.background_kept,
-                "combined": row.combined,
-            }
-            print(
-                f"{rec[:20]} {row.method:22s} flare {row.flare_removed:.3f} light "
-                f"{row.light_kept:.3f} bg {row.background_kept:.3f} comb {row.combined:.3f}",
-                flush=True,
-            )
-    for rec in NO_LIGHT:
-        r = read_events(REAL / rec)
-        for name, m in methods.items():
-            kept = m(r.events, r.sensor_size).size / r.events.size
-            out["no_light"].setdefault(rec, {})[name] = kept
-            print(f"{rec[:20]} {name:22s} kept {kept:.3f}", flush=True)
+    score_real(methods, out)
     a.out.write_text(json.dumps(out, indent=1, default=float))
     print(f"done {time.time() - t0:.0f}s")
 
