@@ -78,10 +78,8 @@ def test_the_gaps_mix_stores_the_scene_alone_beside_dense_and_dim_flare(tmp_path
     with h5py.File(tmp_path / "sparse-346" / "train" / "seq_00000.h5") as f:
         assert {"input", "gt", "background"} <= set(f)
     # seeds no other recipe uses: its sequences are not eflare-mix's or a test set's
-    seeds = [r.seed for name in RECIPES.names() if name != "eflare-gaps"
-             for r in ([p for _, p in RECIPES[name].parts] if isinstance(RECIPES[name], Mix)
-                       else [RECIPES[name]])]  # fmt: skip
-    assert not {r.seed for _, r in RECIPES["eflare-gaps"].parts} & set(seeds)
+    seeds = {r.seed for r in _other_recipes("eflare-gaps")}
+    assert not {r.seed for _, r in RECIPES["eflare-gaps"].parts} & seeds
 
 
 def test_the_day_mix_stores_day_streets_at_the_larger_sensors(tmp_path):
@@ -102,9 +100,7 @@ def test_the_day_mix_stores_day_streets_at_the_larger_sensors(tmp_path):
     assert full.part("drive-640").scene.zoom_per_s == (1.0, 3.0)
     assert full.part("drive-640").scene.sky_level == day_scene.sky_level
     assert full.part("drive-1280").scene.pan_px_per_s == (0.0, 120.0)
-    assert max(r.scene.zoom_per_s[1] for name in RECIPES.names() if name != "eflare-day"
-               for r in ([p for _, p in RECIPES[name].parts] if isinstance(RECIPES[name], Mix)
-                         else [RECIPES[name]]) if r.scene is not None) <= 0.8  # fmt: skip
+    assert max(r.scene.zoom_per_s[1] for r in _other_recipes("eflare-day")) <= 0.8
     assert full.part("drive-640").config.variant == "forward"
     assert full.part("drive-1280").config.variant != "forward"
     small = full.replace(sequences=1, test_sequences=0, sensor_size=(48, 36), duration_us=20_000)
@@ -112,10 +108,39 @@ def test_the_day_mix_stores_day_streets_at_the_larger_sensors(tmp_path):
     for part in full.part_names:
         with h5py.File(tmp_path / part / "train" / "seq_00000.h5") as f:
             assert {"input", "gt", "background"} <= set(f), part
-    seeds = [r.seed for name in RECIPES.names() if name != "eflare-day"
-             for r in ([p for _, p in RECIPES[name].parts] if isinstance(RECIPES[name], Mix)
-                       else [RECIPES[name]])]  # fmt: skip
-    assert not {r.seed for _, r in full.parts} & set(seeds)
+    assert not {r.seed for _, r in full.parts} & {r.seed for r in _other_recipes("eflare-day")}
+
+
+def test_the_training_mix_holds_every_part_of_the_mixes_and_fast_lights(tmp_path):
+    # eflare-train: eflare-mix's and eflare-day's parts (the same recipes: the same
+    # files), then fast-640, eflare-mix's dense-640 with large, fast lights
+    train, mix, day = RECIPES["eflare-train"], RECIPES["eflare-mix"], RECIPES["eflare-day"]
+    assert train.part_names == (*mix.part_names, *day.part_names, "fast-640")
+    assert [r for _, r in train.parts][:-1] == [r for _, r in (*mix.parts, *day.parts)]
+    assert train.sequences == mix.sequences + day.sequences + 18
+    fast, dense = train.part("fast-640"), mix.part("dense-640")
+    assert (fast.sensor_size, fast.scene, fast.config.variant) == (
+        dense.sensor_size, dense.scene, "forward")  # fmt: skip
+    assert fast.config.script.light_radius_px == (2.0, 40.0)  # eflare-mix's: 2-10 px
+    assert fast.config.script.travel_px == (0.0, 1200.0)
+    assert dense.config.script.light_radius_px == (2.0, 10.0)
+    others = {r.seed for r in _other_recipes("eflare-train")}
+    assert fast.seed not in others
+    small = train.replace(sequences=1, test_sequences=0, sensor_size=(48, 36), duration_us=20_000)
+    generate_dataset(small.part("fast-640"), tmp_path, progress=False)
+    with h5py.File(tmp_path / "train" / "seq_00000.h5") as f:
+        assert {"input", "gt", "background"} <= set(f)  # the scene alone stored
+
+
+def _other_recipes(name: str) -> list:
+    """The registered recipes and mix parts outside ``name`` that are not its parts too."""
+
+    def parts(entry):
+        return [r for _, r in entry.parts] if isinstance(entry, Mix) else [entry]
+
+    own = parts(RECIPES[name])
+    return [r for other in RECIPES.names() if other != name
+            for r in parts(RECIPES[other]) if r not in own]  # fmt: skip
 
 
 def test_shards_assemble_the_same_bytes(reference, tmp_path):

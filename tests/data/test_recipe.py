@@ -231,7 +231,8 @@ def test_dense_sources_are_10_to_the_1_5_to_10_to_the_5_times_the_street():
 
 def test_the_forward_test_sets_are_all_test_and_never_trained_on(tmp_path):
     training = {name: r for name, r in RECIPES.items() if isinstance(r, Recipe)}
-    training |= {f"eflare-mix/{p}": r for p, r in RECIPES["eflare-mix"].parts}
+    for mix in (m for m in RECIPES.values() if isinstance(m, Mix)):
+        training |= {f"{mix.name}/{p}": r for p, r in mix.parts}
     sets = (("eflare-forward", (640, 480), 12), ("eflare-forward-hd", (1280, 720), 4))
     for name, size, n in sets:
         r = training.pop(name)
