@@ -478,6 +478,7 @@ def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng):
         (["--context", "-1"], "--context must be 0 or more, got -1"),
         (["--context", "2", "--context-widths", ""], "--context-widths needs at least one width"),
         (["--context-widths", "8,0"], "widths must be positive integers"),
+        (["--members", "0"], "--members must be at least 1"),
     ],
 )
 def test_train_head_refuses_a_bad_context_before_reading_data(tmp_path, capsys, args, message):
@@ -489,3 +490,96 @@ def test_train_head_refuses_a_bad_context_before_reading_data(tmp_path, capsys, 
         code = exc.code
     assert code != 0 and message in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
+
+
+# ----------------------------------------------------------------------------- ensembles
+
+
+def _random_context_head(seed: int) -> EventHead:
+    torch.manual_seed(seed)
+    head = EventHead(["net_logit", "support"], hidden=(4,),
+                     context={"channels": 2, "inputs": 33, "widths": [4, 8]})  # fmt: skip
+    with torch.no_grad():
+        for p in head.parameters():
+            torch.nn.init.normal_(p, std=0.5)
+    return head
+
+
+def test_an_ensemble_decides_by_the_mean_of_its_members_logits(tmp_path, rng):
+    from edeflare.models.event_head import EventHeadEnsemble
+
+    heads = [_random_context_head(s) for s in (1, 2, 3)]
+    ev = random_events(rng, 6_000, (64, 48), t0=0, span_us=40_000)
+    windows = [(s, ev[(ev["t"] >= s) & (ev["t"] < s + 20_000)]) for s in (0, 20_000)]
+    alone = []
+    for i, head in enumerate(heads):  # each member over the same network, on its own
+        save_with_head(tmp_path / f"m{i}.safetensors", head)
+        d = ModelDeflarer(tmp_path / f"m{i}.safetensors", runtime="torch")
+        alone.append(d.window_logits(windows, (64, 48)))
+    save_with_head(tmp_path / "ens.safetensors", EventHeadEnsemble(heads))
+    card = read_card(tmp_path / "ens.safetensors")
+    assert card.head["members"] == 3 and card.head["context"]["channels"] == 2
+    d = ModelDeflarer(tmp_path / "ens.safetensors", runtime="torch")
+    assert isinstance(d.model.head, EventHeadEnsemble) and d.head_params["context"] == 6
+    for k, got in enumerate(d.window_logits(windows, (64, 48))):
+        want = np.mean([a[k] for a in alone], axis=0)
+        assert got.shape == (windows[k][1].size,)
+        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-4)
+        assert np.abs(alone[0][k] - alone[1][k]).max() > 0.1  # the members do differ
+
+
+def test_onnx_export_of_an_ensemble_decides_alike(tmp_path, rng):
+    pytest.importorskip("onnxruntime")
+    from edeflare.models.event_head import EventHeadEnsemble
+
+    ensemble = EventHeadEnsemble([_random_context_head(s) for s in (4, 5)])
+    assert_onnx_decides_alike(tmp_path, rng, ensemble, kept_share=(0.05, 0.95))
+
+
+def test_malformed_ensembles_are_refused_naming_the_problem():
+    from edeflare.errors import ParameterError
+    from edeflare.models.event_head import EventHeadEnsemble
+
+    for members in (0, True, "2"):
+        with pytest.raises(WeightsError, match="members must be a positive integer"):
+            ModelCard.from_dict(
+                {"preset": "mask.lite", "head": {"features": ["net_logit"], "members": members}}
+            )
+    # one member is a plain head: the card's entry leaves it out
+    card = ModelCard.from_dict(
+        {"preset": "mask.lite", "head": {"features": ["net_logit"], "members": 1}}
+    )
+    assert "members" not in card.head
+    with pytest.raises(ParameterError, match="share one layout"):
+        EventHeadEnsemble([EventHead(["net_logit"], (4,)), EventHead(["net_logit"], (8,))])
+    with pytest.raises(ParameterError, match="at least two heads"):
+        EventHeadEnsemble([EventHead(["net_logit"], (4,))])
+
+
+def test_train_head_fits_members_from_successive_seeds_on_the_same_events(tmp_path, rng):
+    from edeflare.models.event_head import EventHeadEnsemble
+
+    for part in ("a", "b"):
+        _pairs(tmp_path / "mix" / part, rng, 2)
+    base = tmp_path / "base.safetensors"
+    save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+    parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
+    one = HeadTrainingConfig(features=("net_logit", "rate_8", "polarity"), hidden=(8,),
+                             epochs=5, batch_size=256, per_window=300, seed=7)  # fmt: skip
+    train_head(parts, base, tmp_path / "one", one, progress=False)
+    three = dataclasses.replace(one, members=3)
+    summary = train_head(parts, base, tmp_path / "three", three, progress=False)
+    card = read_card(tmp_path / "three" / "model.safetensors")
+    assert card.head["members"] == 3 and card.keep_threshold == summary["keep_threshold"]
+    ens, _ = load_model(tmp_path / "three" / "model.safetensors")
+    single, _ = load_model(tmp_path / "one" / "model.safetensors")
+    assert isinstance(ens.head, EventHeadEnsemble) and len(ens.head.members) == 3
+    # member 0 is the single run's head (seed 7), the others other seeds' (8, 9)
+    first, second = ens.head.members[0].layers[0].weight, ens.head.members[1].layers[0].weight
+    assert torch.equal(first, single.head.layers[0].weight)
+    assert not torch.equal(first, second)
+    # the members share the events drawn once (the seed of the features is the run's)
+    assert len(list((tmp_path / "three").glob("features-*.npz"))) == 2
+    assert HeadTrainingConfig().members == 1
+    with pytest.raises(Exception, match="members must be at least 1"):
+        HeadTrainingConfig(members=0)

@@ -82,6 +82,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--members",
+        type=int,
+        default=1,
+        metavar="N",
+        help="fit N heads from seeds SEED, SEED+1, ... on the same events and keep their mean "
+        "logit (an ensemble: steadier on real recordings than any one seed)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -93,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     from ..models.head_training import HeadTrainingConfig, train_head
     from ..models.infer import resolve_weights
 
-    for name in ("per_window", "epochs"):
+    for name in ("per_window", "epochs", "members"):
         if getattr(args, name) < 1:
             raise ParameterError(f"--{name.replace('_', '-')} must be at least 1")
     if args.context < 0:
@@ -119,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
         epochs=args.epochs,
         lr=args.lr,
         seed=args.seed,
+        members=args.members,
     )
     command = "edeflare " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "edeflare train-head"
     summary = train_head(

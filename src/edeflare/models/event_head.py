@@ -32,27 +32,39 @@ from torch import nn
 from ..errors import ParameterError
 from .event_features import check_feature_names
 
-__all__ = ["HEAD_BLOCK", "EventHead", "event_cells", "gather_context", "head_logits", "head_spec"]
+__all__ = [
+    "HEAD_BLOCK",
+    "EventHead",
+    "EventHeadEnsemble",
+    "build_head",
+    "event_cells",
+    "gather_context",
+    "head_logits",
+    "head_spec",
+]
 
 
 def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, Any]:
     """A card's ``head`` entry checked: ``{"features": [...], "hidden": [...]}``, and
     ``"context": {"channels": k, "inputs": c, "widths": [...]}`` for a head with a learned
-    whole-frame context (:class:`EventHead`).
+    whole-frame context (:class:`EventHead`), and ``"members": n`` (2 or more) for an
+    ensemble of ``n`` such heads (:class:`EventHeadEnsemble`).
 
     Examples
     --------
     >>> head_spec({"features": ["net_logit"], "hidden": [8]})
     {'features': ['net_logit'], 'hidden': [8]}
+    >>> head_spec({"features": ["net_logit"], "hidden": [8], "members": 3})["members"]
+    3
     >>> head_spec({"features": ["net_logit"], "hiden": [8]}, "head")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
     edeflare.errors.ParameterError: head: unknown keys ['hiden'] (a head holds features, ...)
     """
-    unknown = sorted(set(spec) - {"features", "hidden", "context"})
+    unknown = sorted(set(spec) - {"features", "hidden", "context", "members"})
     if unknown:
         raise ParameterError(
-            f"{where}: unknown keys {unknown} (a head holds features, hidden, context)"
+            f"{where}: unknown keys {unknown} (a head holds features, hidden, context, members)"
         )
     features = list(check_feature_names(spec.get("features", ()), where))
     if not features:
@@ -74,7 +86,28 @@ def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, A
         if not widths:
             raise ParameterError(f"{where}: context widths must not be empty")
         out["context"] = {"channels": channels, "inputs": inputs, "widths": widths}
+    members = spec.get("members", 1)
+    if isinstance(members, bool) or not isinstance(members, int) or members < 1:
+        raise ParameterError(f"{where}: members must be a positive integer, got {members!r}")
+    if members > 1:
+        out["members"] = members
     return out
+
+
+def build_head(spec: Mapping[str, Any]) -> EventHead | EventHeadEnsemble:
+    """A fresh head of a card's ``head`` entry: an :class:`EventHead`, or an
+    :class:`EventHeadEnsemble` where it has ``members``.
+
+    Examples
+    --------
+    >>> type(build_head({"features": ["net_logit"], "hidden": [4], "members": 2})).__name__
+    'EventHeadEnsemble'
+    """
+    spec = head_spec(spec)
+    members = spec.pop("members", 1)
+    if members == 1:
+        return EventHead(**spec)
+    return EventHeadEnsemble([EventHead(**spec) for _ in range(members)])
 
 
 def _widths(values: Any, what: str) -> list[int]:
@@ -202,6 +235,80 @@ class EventHead(nn.Module):
         }
 
 
+class EventHeadEnsemble(nn.Module):
+    """Several :class:`EventHead` of one layout, trained apart (other seeds): an event's
+    keep logit is the mean of theirs.
+
+    Heads trained from other seeds disagree on real recordings far more than on the
+    simulated pairs they were chosen on; their mean is steadier than any one of them.
+    Its input columns are the features, then each member's context channels in turn
+    (:meth:`context_maps` gives the members' maps one after another).
+
+    Parameters
+    ----------
+    members : sequence of EventHead
+        Two or more heads of one layout (features, hidden widths, context).
+
+    Examples
+    --------
+    >>> heads = [EventHead(("net_logit",), (4,)) for _ in range(3)]
+    >>> ens = EventHeadEnsemble(heads)
+    >>> x = torch.randn(5, 1)
+    >>> bool(torch.allclose(ens(x), torch.stack([h(x) for h in heads]).mean(0)))
+    True
+    >>> ens.spec()["members"], ens.columns
+    (3, 1)
+    """
+
+    def __init__(self, members: Sequence[EventHead]) -> None:
+        super().__init__()
+        if len(members) < 2:
+            raise ParameterError(f"an ensemble needs at least two heads, got {len(members)}")
+        layout = members[0].spec()
+        for m in members[1:]:
+            if m.spec() != layout:
+                raise ParameterError(
+                    f"an ensemble's heads must share one layout, got {layout} and {m.spec()}"
+                )
+        self.members = nn.ModuleList(members)
+        first = members[0]
+        self.feature_names = first.feature_names
+        self.hidden = first.hidden
+        self.context = first.context
+        k = self.context["channels"] if self.context else 0
+        self.columns = len(self.feature_names) + len(members) * k
+        """Input columns: the features, then each member's context channels."""
+
+    def spec(self) -> dict[str, Any]:
+        """The card's ``head`` entry: a member's, with ``members``."""
+        return {**self.members[0].spec(), "members": len(self.members)}
+
+    def context_maps(self, cells: torch.Tensor) -> torch.Tensor:
+        """The members' maps one after another ``(N, members * channels, h, w)``."""
+        return torch.cat([m.context_maps(cells) for m in self.members], 1)
+
+    def _member_columns(self, x: torch.Tensor, i: int) -> torch.Tensor:
+        n = len(self.feature_names)
+        if not self.context:
+            return x
+        k = self.context["channels"]
+        return torch.cat([x[:, :n], x[:, n + i * k : n + (i + 1) * k]], 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        logits = [m(self._member_columns(x, i)) for i, m in enumerate(self.members)]
+        return torch.stack(logits).mean(0)
+
+    def numpy_params(self) -> dict[str, Any]:
+        """:func:`head_logits`' weights: each member's (``members``), the feature names
+        and every context column (``context``: members x channels)."""
+        params = [m.numpy_params() for m in self.members]
+        return {
+            "features": self.feature_names,
+            "context": sum(p["context"] for p in params),
+            "members": params,
+        }
+
+
 def _groups(widths: Sequence[int]) -> int:
     """Group norms' groups of a context network of level ``widths``: 4 where all divide."""
     return 4 if all(w % 4 == 0 for w in widths) else 1
@@ -242,10 +349,20 @@ cache (a dense 1280x720 window holds millions of events: twice as fast as one bl
 
 
 def head_logits(params: Mapping[str, Any], features: np.ndarray) -> np.ndarray:
-    """The keep logits of ``(n, F)`` features (float32), from :meth:`EventHead.numpy_params`.
+    """The keep logits of ``(n, F)`` features (float32), from :meth:`EventHead.numpy_params`
+    (an ensemble's, :meth:`EventHeadEnsemble.numpy_params`: the mean of its members').
 
     Rows are independent: blocks of :data:`HEAD_BLOCK` events give what one block would.
     """
+    if "members" in params:
+        z = np.asarray(features, np.float32)
+        n, out = len(params["features"]), np.zeros(z.shape[0], np.float32)
+        at = n
+        for member in params["members"]:
+            k = member["context"]
+            out += head_logits(member, np.hstack([z[:, :n], z[:, at : at + k]]) if k else z[:, :n])
+            at += k
+        return out / len(params["members"])
     z = np.asarray(features, np.float32)
     out = np.empty(z.shape[0], np.float32)
     last = len(params["weights"]) - 1

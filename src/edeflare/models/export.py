@@ -41,7 +41,7 @@ import io
 import json
 import os
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -189,14 +189,7 @@ def _export(model: nn.Module, card: ModelCard, size: SensorSize, opset: int) -> 
         meta.append((_PIXEL_KEY, json.dumps({k: v.tolist() for k, v in params.items()})))
     head = getattr(model, "head", None)
     if head is not None:  # applied per event after the graph, as in ModelDeflarer
-        p = head.numpy_params()
-        as_lists = {
-            "features": list(p["features"]),
-            "context": int(p["context"]),
-            "weights": [w.tolist() for w in p["weights"]],
-            "biases": [b.tolist() for b in p["biases"]],
-        }
-        meta.append((_HEAD_KEY, json.dumps(as_lists)))
+        meta.append((_HEAD_KEY, json.dumps(_head_lists(head.numpy_params()))))
     for key, value in meta:
         entry = proto.metadata_props.add()
         entry.key, entry.value = key, value
@@ -335,24 +328,46 @@ def _pixel_params(session: Any, source: str) -> dict[str, np.ndarray] | None:
         raise WeightsError(f"{source}: unreadable pixel refinement metadata ({exc})") from None
 
 
+def _head_lists(p: Mapping[str, Any]) -> dict[str, Any]:
+    """A head's :meth:`~edeflare.models.event_head.EventHead.numpy_params` as JSON lists
+    (an ensemble's with its ``members``')."""
+    out: dict[str, Any] = {"features": list(p["features"]), "context": int(p["context"])}
+    if "members" in p:
+        out["members"] = [_head_lists(m) for m in p["members"]]
+    else:
+        out["weights"] = [w.tolist() for w in p["weights"]]
+        out["biases"] = [b.tolist() for b in p["biases"]]
+    return out
+
+
 def _head_params(session: Any, source: str) -> dict[str, Any] | None:
     """The learned keep head's weights stored beside the graph (None: it has none)."""
     text = session.get_modelmeta().custom_metadata_map.get(_HEAD_KEY)
     if text is None:
         return None
     try:
-        raw = json.loads(text)
-        context = raw.get("context", 0)
-        if isinstance(context, bool) or not isinstance(context, int) or context < 0:
-            raise ValueError(f"context channels {context!r}")
-        return {
-            "features": check_feature_names(raw["features"], f"{source}: keep head"),
-            "context": context,
-            "weights": [np.asarray(w, dtype=np.float32) for w in raw["weights"]],
-            "biases": [np.asarray(b, dtype=np.float32) for b in raw["biases"]],
-        }
+        return _head_arrays(json.loads(text), f"{source}: keep head")
     except (ValueError, TypeError, KeyError, AttributeError) as exc:
         raise WeightsError(f"{source}: unreadable keep head metadata ({exc})") from None
+
+
+def _head_arrays(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """:func:`_head_lists`' inverse, checked (``ValueError`` and kin where malformed)."""
+    context = raw.get("context", 0)
+    if isinstance(context, bool) or not isinstance(context, int) or context < 0:
+        raise ValueError(f"context channels {context!r}")
+    features = check_feature_names(raw["features"], where)
+    if "members" in raw:
+        members = [_head_arrays(m, where) for m in raw["members"]]
+        if len(members) < 2 or sum(m["context"] for m in members) != context:
+            raise ValueError(f"{len(members)} members for {context} context channels")
+        return {"features": features, "context": context, "members": members}
+    return {
+        "features": features,
+        "context": context,
+        "weights": [np.asarray(w, dtype=np.float32) for w in raw["weights"]],
+        "biases": [np.asarray(b, dtype=np.float32) for b in raw["biases"]],
+    }
 
 
 def read_onnx_card(path: str | os.PathLike[str]) -> ModelCard:

@@ -59,7 +59,7 @@ from ..io.sequence import file_sha256, list_sequences, read_sequence
 from ..lights.cells import covered_us
 from ..rules import WindowContext
 from .event_features import FEATURES, window_features
-from .event_head import EventHead, event_cells, head_logits
+from .event_head import EventHead, EventHeadEnsemble, event_cells, head_logits
 
 __all__ = [
     "HeadTrainingConfig",
@@ -145,6 +145,15 @@ class HeadTrainingConfig:
     """Windows per step (a head with a context: their events together)."""
     lr: float = 3e-3
     seed: int = 0
+    members: int = 1
+    """Heads fitted from seeds ``seed``, ``seed + 1``, ... on the same drawn events, their
+    keep logits averaged (:class:`EventHeadEnsemble`; 1: one head)."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.members, bool) or not isinstance(self.members, int):
+            raise EdeflareError(f"members must be a positive integer, got {self.members!r}")
+        if self.members < 1:
+            raise EdeflareError(f"members must be at least 1, got {self.members}")
 
 
 def _windows(events: np.ndarray, start: int, end: int, window_us: int):
@@ -292,7 +301,10 @@ def _rows_of(data: dict[str, np.ndarray]) -> list[np.ndarray]:
 
 
 def _context_batch(
-    head: EventHead, data: dict[str, np.ndarray], rows: list[np.ndarray], ids: list[int]
+    head: EventHead | EventHeadEnsemble,
+    data: dict[str, np.ndarray],
+    rows: list[np.ndarray],
+    ids: list[int],
 ) -> tuple[torch.Tensor, np.ndarray]:
     """The features with their context columns of the rows of windows ``ids``, and the rows."""
     maps = head.context_maps(_window_cells(data, ids))  # (B, k, h, w)
@@ -305,7 +317,7 @@ def _context_batch(
     return torch.cat([x, ctx], 1), idx
 
 
-def context_columns(head: EventHead, data: dict[str, np.ndarray]) -> np.ndarray:
+def context_columns(head: EventHead | EventHeadEnsemble, data: dict[str, np.ndarray]) -> np.ndarray:
     """Every row's features and context columns ``(n, features + k)`` (float32), as
     :meth:`~edeflare.models.infer.ModelDeflarer.window_logits` gives them to the head."""
     out = np.empty((data["x"].shape[0], head.columns), np.float32)
@@ -524,11 +536,15 @@ def train_head(
             ),
         )  # fmt: skip
     train, val = sets["train"], sets["test"]
-    head = (
-        fit_context_head(train, config, progress=progress)
+    heads = [
+        fit_context_head(train, member, progress=progress)
         if config.context
-        else fit_head(train["x"], train["y"], config, progress=progress)
-    )
+        else fit_head(train["x"], train["y"], member, progress=progress)
+        for member in (
+            dataclasses.replace(config, seed=config.seed + i) for i in range(config.members)
+        )
+    ]
+    head = heads[0] if len(heads) == 1 else EventHeadEnsemble(heads)
     val_files = summary_files["test"]
     groups = np.array([_group(val_files, int(i)) for i in val["source"]])
     columns = context_columns(head, val) if config.context else val["x"]

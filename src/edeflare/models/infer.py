@@ -47,7 +47,7 @@ from ..rules import RULES, RuleSet, WindowContext
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .event_features import window_features
-from .event_head import EventHead, gather_context, head_logits
+from .event_head import EventHead, EventHeadEnsemble, gather_context, head_logits
 from .export import GRAPH_MASK, MaskOutputs, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet
 from .mask_kernels import (
@@ -316,7 +316,8 @@ class ModelDeflarer:
             model, card = load_model(weights, self.device)
             self.pixel_params = model.pixel_params() if isinstance(model, FlareMaskNet) else None
             head = getattr(model, "head", None)
-            self.head_params = head.numpy_params() if isinstance(head, EventHead) else None
+            heads = (EventHead, EventHeadEnsemble)
+            self.head_params = head.numpy_params() if isinstance(head, heads) else None
         if card.head and not isinstance(model, FlareMaskNet):
             raise EdeflareError(f"{weights}: a keep head needs a mask model, not a {card.preset}")
         self.model: torch.nn.Module = model

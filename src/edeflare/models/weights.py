@@ -27,7 +27,7 @@ from ..errors import EdeflareError, ParameterError
 from ..io._atomic import atomic_path
 from ..rules import RuleSet, knob_fields
 from . import create_model, get_preset
-from .event_head import EventHead, head_spec
+from .event_head import build_head, head_spec
 
 __all__ = [
     "ModelCard",
@@ -269,7 +269,7 @@ def card_model(path: Path, preset: str, head: Mapping[str, Any] | None) -> nn.Mo
     except ValueError as exc:
         raise WeightsError(f"{path}: {exc}") from None
     if head:  # the learned keep head rides with the network, as its submodule
-        model.head = EventHead(**head)
+        model.head = build_head(head)
         context = model.head.context
         bins = getattr(model, "bins", None)
         if context and bins is not None and context["inputs"] != 4 * bins + 1:
