@@ -354,16 +354,15 @@ def head_logits(params: Mapping[str, Any], features: np.ndarray) -> np.ndarray:
 
     Rows are independent: blocks of :data:`HEAD_BLOCK` events give what one block would.
     """
-    if "members" in params:
-        z = np.asarray(features, np.float32)
-        n, out = len(params["features"]), np.zeros(z.shape[0], np.float32)
-        at = n
+    z = np.asarray(features, np.float32)
+    if "members" in params:  # each reads the features and its own context columns
+        n, at = len(params["features"]), len(params["features"])
+        total = np.zeros(z.shape[0], np.float32)
         for member in params["members"]:
             k = member["context"]
-            out += head_logits(member, np.hstack([z[:, :n], z[:, at : at + k]]) if k else z[:, :n])
+            total += head_logits(member, np.hstack([z[:, :n], z[:, at : at + k]]))
             at += k
-        return out / len(params["members"])
-    z = np.asarray(features, np.float32)
+        return total / len(params["members"])
     out = np.empty(z.shape[0], np.float32)
     last = len(params["weights"]) - 1
     layers = list(zip(params["weights"], params["biases"], strict=True))
