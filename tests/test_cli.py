@@ -68,6 +68,15 @@ def test_info_prints_a_weights_files_card(tmp_path, capsys):
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "preset      unet2d.tiny (8 bins, 20 ms windows)" in out and "priors" not in out
+    ens = tmp_path / "ens.safetensors"  # a mask model with an ensemble of context heads
+    head = {"features": ["net_logit"], "hidden": [4], "members": 3,
+            "context": {"channels": 2, "inputs": 33, "widths": [4, 8]}}  # fmt: skip
+    save_model(ens, create_model("mask.lite"), ModelCard(preset="mask.lite", head=head))
+    assert main(["info", str(ens)]) == 0
+    out = capsys.readouterr().out
+    assert "head        learned: 1 features, hidden 4\n" in out
+    assert "context     2 maps of 33 cell channels, U-Net widths 4, 8\n" in out
+    assert "members     3 heads, their mean keep logit\n" in out
     bare = tmp_path / "bare.safetensors"  # tensors, but no card
     save_file({"w": torch.zeros(2)}, str(bare))
     assert main(["info", str(bare)]) == 1

@@ -90,6 +90,13 @@ def _card(path: Path) -> int:
             widths = ", ".join(map(str, card.head["hidden"])) or "none"
             print(f"head        learned: {len(card.head['features'])} features, hidden {widths}")
             print(f"features    {', '.join(card.head['features'])}")
+            context = card.head.get("context")
+            if context:
+                levels = ", ".join(map(str, context["widths"]))
+                print(f"context     {context['channels']} maps of {context['inputs']} cell "
+                      f"channels, U-Net widths {levels}")  # fmt: skip
+            if card.head.get("members"):
+                print(f"members     {card.head['members']} heads, their mean keep logit")
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")
     for name in ("data", "command", "notes"):
