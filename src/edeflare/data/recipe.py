@@ -886,6 +886,6 @@ def list_recipes() -> list[str]:
     >>> list_recipes()  # doctest: +NORMALIZE_WHITESPACE
     ['dsec-flare', 'eflare-2.7k', 'eflare-day', 'eflare-day-street', 'eflare-forward',
      'eflare-forward-hd', 'eflare-gaps', 'eflare-mini', 'eflare-mix', 'eflare-night',
-     'eflare-night-sparse', 'eflare-r-sim', 'eflare-r-sim-mini']
+     'eflare-night-sparse', 'eflare-r-sim', 'eflare-r-sim-mini', 'eflare-train']
     """
     return RECIPES.names()
