@@ -583,3 +583,10 @@ def test_train_head_fits_members_from_successive_seeds_on_the_same_events(tmp_pa
     assert HeadTrainingConfig().members == 1
     with pytest.raises(Exception, match="members must be at least 1"):
         HeadTrainingConfig(members=0)
+    # with a context: each member's maps one after another, and the run de-flares
+    ctx = dataclasses.replace(one, context=2, context_widths=(4,), batch_windows=2, members=2)
+    train_head(parts, base, tmp_path / "ctx", ctx, progress=False)
+    d = ModelDeflarer(tmp_path / "ctx" / "model.safetensors")
+    assert d.card.head["members"] == 2 and d.head_params["context"] == 4
+    inp = random_events(rng, 2_000, (48, 32), t0=0, span_us=40_000)
+    assert 0 <= d(inp, (48, 32)).size <= inp.size
