@@ -269,11 +269,18 @@ def _pairs(folder, rng, n_files, size=(48, 32)):
             write_dsec_groups(folder / split / f"s{i}.h5", {"input": inp, "gt": scene}, size)
 
 
-def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_path, rng):
-    for part in ("a", "b"):
-        _pairs(tmp_path / "mix" / part, rng, 2)
+def _two_parts_and_a_base(tmp_path, rng):
+    """Two datasets of :func:`_pairs` (two training files each) and an untrained mask.lite."""
+    parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
+    for part in parts:
+        _pairs(part, rng, 2)
     base = tmp_path / "base.safetensors"
     save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+    return parts, base
+
+
+def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_path, rng):
+    parts, base = _two_parts_and_a_base(tmp_path, rng)
     config = HeadTrainingConfig(
         features=("net_logit", "rate_8", "rate_32", "polarity"),
         hidden=(8,),
@@ -281,7 +288,6 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
         batch_size=256,
         per_window=500,
     )
-    parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
     summary = train_head(parts, base, tmp_path / "run", config, progress=False)
     assert summary["chosen_on"] == "the datasets' test splits: a, b"
     cached = sorted(p.name for p in (tmp_path / "run").glob("features-*.npz"))
@@ -398,11 +404,7 @@ def test_time_since_the_pixels_last_event_equals_a_sort_by_pixel(rng):
 def test_a_context_head_learns_what_its_features_cannot_tell(tmp_path, rng):
     # polarity alone cannot tell the left half's flare from the right half's scene: the
     # plain head keeps both or neither, the context (a map of the whole window) learns it
-    for part in ("a", "b"):
-        _pairs(tmp_path / "mix" / part, rng, 2)
-    base = tmp_path / "base.safetensors"
-    save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
-    parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
+    parts, base = _two_parts_and_a_base(tmp_path, rng)
     plain = HeadTrainingConfig(features=("polarity",), hidden=(8,), epochs=20, per_window=500)
     with_context = dataclasses.replace(
         plain, context=2, context_widths=(4, 8), batch_windows=2, epochs=40, lr=1e-2
@@ -559,11 +561,7 @@ def test_malformed_ensembles_are_refused_naming_the_problem():
 def test_train_head_fits_members_from_successive_seeds_on_the_same_events(tmp_path, rng):
     from edeflare.models.event_head import EventHeadEnsemble
 
-    for part in ("a", "b"):
-        _pairs(tmp_path / "mix" / part, rng, 2)
-    base = tmp_path / "base.safetensors"
-    save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
-    parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
+    parts, base = _two_parts_and_a_base(tmp_path, rng)
     one = HeadTrainingConfig(features=("net_logit", "rate_8", "polarity"), hidden=(8,),
                              epochs=5, batch_size=256, per_window=300, seed=7)  # fmt: skip
     train_head(parts, base, tmp_path / "one", one, progress=False)

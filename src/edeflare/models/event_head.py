@@ -271,13 +271,24 @@ class EventHeadEnsemble(nn.Module):
                     f"an ensemble's heads must share one layout, got {layout} and {m.spec()}"
                 )
         self.members = nn.ModuleList(members)
-        first = members[0]
-        self.feature_names = first.feature_names
-        self.hidden = first.hidden
-        self.context = first.context
-        k = self.context["channels"] if self.context else 0
-        self.columns = len(self.feature_names) + len(members) * k
+
+    # the layout is the members' (one for all): read from the first
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        return self.members[0].feature_names
+
+    @property
+    def hidden(self) -> tuple[int, ...]:
+        return self.members[0].hidden
+
+    @property
+    def context(self) -> dict[str, Any] | None:
+        return self.members[0].context
+
+    @property
+    def columns(self) -> int:
         """Input columns: the features, then each member's context channels."""
+        return len(self.feature_names) + sum(m.columns - len(m.feature_names) for m in self.members)
 
     def spec(self) -> dict[str, Any]:
         """The card's ``head`` entry: a member's, with ``members``."""
