@@ -18,9 +18,11 @@ from edeflare.models import create_model
 from edeflare.models.event_features import FEATURES, NO_LIGHT_RADII, window_features
 from edeflare.models.event_head import EventHead, head_logits
 from edeflare.models.head_training import (
+    LN3,
     HeadTrainingConfig,
     choose_threshold,
     keep_labels,
+    teacher_targets,
     train_head,
 )
 from edeflare.models.infer import ModelDeflarer
@@ -588,3 +590,71 @@ def test_train_head_fits_members_from_successive_seeds_on_the_same_events(tmp_pa
     assert d.card.head["members"] == 2 and d.head_params["context"] == 4
     inp = random_events(rng, 2_000, (48, 32), t0=0, span_us=40_000)
     assert 0 <= d(inp, (48, 32)).size <= inp.size
+
+
+# ----------------------------------------------------------------------------- distillation
+
+
+def _constant_teacher(base, path, features, keep_probability):
+    """A head over ``base``'s network that gives every event ``keep_probability``."""
+    net, card = load_model(base)
+    net.head = EventHead(features, (4,))
+    with torch.no_grad():
+        for p in net.head.parameters():
+            p.zero_()
+        net.head.layers[-1].bias.fill_(math.log(keep_probability / (1 - keep_probability)) - LN3)
+    save_model(path, net, dataclasses.replace(card, head=net.head.spec()))
+    return path
+
+
+def test_a_distilled_head_learns_its_teachers_probabilities_not_the_labels(tmp_path, rng):
+    parts, base = _two_parts_and_a_base(tmp_path, rng)
+    features = ("net_logit", "rate_8", "polarity")
+    config = HeadTrainingConfig(features=features, hidden=(4,), epochs=20, batch_size=256,
+                                per_window=300)  # fmt: skip
+    teacher = _constant_teacher(base, tmp_path / "teacher.safetensors", features, 0.7)
+    summary = train_head(parts, base, tmp_path / "student", config, teacher=teacher,
+                         progress=False)  # fmt: skip
+    assert summary["teacher"] == str(teacher) and len(summary["teacher_sha256"]) == 64
+    card = read_card(tmp_path / "student" / "model.safetensors")
+    assert "distilled from teacher.safetensors" in card.notes
+    train_head(parts, base, tmp_path / "labels", config, progress=False)
+    (cache,) = (tmp_path / "student").glob("features-train-*.npz")
+    with np.load(cache) as z:
+        data = {k: z[k] for k in z.files}
+    np.testing.assert_allclose(teacher_targets(teacher, base, features, data), 0.7, atol=1e-6)
+    student = teacher_targets(tmp_path / "student" / "model.safetensors", base, features, data)
+    labels = teacher_targets(tmp_path / "labels" / "model.safetensors", base, features, data)
+    assert np.abs(student - 0.7).mean() < 0.05  # the teacher's 0.7 everywhere
+    # learned from the labels, the same head tells the dense left from the sparse right
+    assert labels[data["y"]].mean() - labels[~data["y"]].mean() > 0.5
+
+
+def test_a_teacher_that_does_not_fit_the_student_is_refused(tmp_path, capsys):
+    base, other_base = tmp_path / "base.safetensors", tmp_path / "b2.safetensors"
+    for path, seed in ((base, 0), (other_base, 1)):
+        torch.manual_seed(seed)
+        save_model(path, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+    features = ("net_logit", "rate_8")
+    data = {"x": np.zeros((3, 2), np.float32)}
+    with pytest.raises(Exception, match="the teacher has no keep head"):
+        teacher_targets(base, base, features, data)
+    other = _constant_teacher(base, tmp_path / "t.safetensors", ("net_logit", "support"), 0.5)
+    with pytest.raises(Exception, match=r"reads the features \['net_logit', 'support'\]"):
+        teacher_targets(other, base, features, data)
+    teacher = _constant_teacher(base, tmp_path / "t2.safetensors", features, 0.5)
+    with pytest.raises(Exception, match="the teacher's network differs from that of"):
+        teacher_targets(teacher, other_base, features, data)
+    ctx = EventHead(features, (4,), {"channels": 2, "inputs": 33, "widths": [4]})
+    net, card = load_model(base)
+    net.head = ctx
+    save_model(tmp_path / "t3.safetensors", net, dataclasses.replace(card, head=ctx.spec()))
+    with pytest.raises(Exception, match="train the student with a context too"):
+        teacher_targets(tmp_path / "t3.safetensors", base, features, data)
+    # the command refuses such a teacher before it reads data or makes the run folder
+    from edeflare.cli import main
+
+    code = main(["train-head", str(tmp_path / "none"), "--out", str(tmp_path / "run"),
+                 "--weights", str(base), "--teacher", str(other)])  # fmt: skip
+    assert code != 0 and not (tmp_path / "run").exists()
+    assert "the teacher reads the features" in capsys.readouterr().err

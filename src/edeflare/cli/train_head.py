@@ -90,6 +90,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="fit N heads from seeds SEED, SEED+1, ... on the same events and keep their mean "
         "logit (an ensemble: steadier on real recordings than any one seed)",
     )
+    p.add_argument(
+        "--teacher",
+        metavar="WEIGHTS",
+        help="learn the keep probabilities of a trained head over the same network (e.g. an "
+        "ensemble's RUN/model.safetensors) instead of the labels: one head that decides like it",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -136,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
         args.out,
         config,
         command=command,
+        teacher=None if args.teacher is None else resolve_weights(args.teacher),
         progress=not args.no_progress,
     )
     best = max(summary["threshold_table"], key=lambda r: r["score"])

@@ -69,6 +69,8 @@ __all__ = [
     "fit_context_head",
     "fit_head",
     "keep_labels",
+    "load_teacher",
+    "teacher_targets",
     "train_head",
 ]
 
@@ -329,17 +331,81 @@ def context_columns(head: EventHead | EventHeadEnsemble, data: dict[str, np.ndar
     return out
 
 
+def load_teacher(
+    teacher: str | os.PathLike[str],
+    base: str | os.PathLike[str],
+    features: Sequence[str],
+    *,
+    context: bool,
+) -> EventHead | EventHeadEnsemble:
+    """The keep head of ``teacher``, checked to fit a student over ``base``'s network that
+    reads ``features`` (with a ``context`` of the windows' cells, or not)."""
+    from .weights import load_model
+
+    model, _ = load_model(teacher)
+    head = getattr(model, "head", None)
+    if head is None:
+        raise EdeflareError(f"{teacher}: the teacher has no keep head (train one with train-head)")
+    if list(head.feature_names) != list(features):
+        raise EdeflareError(
+            f"{teacher}: the teacher reads the features {list(head.feature_names)}, the "
+            f"student {list(features)}: they must be the same"
+        )
+    net, _ = load_model(base)
+    mine = model.state_dict()
+    for name, value in net.state_dict().items():
+        other = mine.get(name)
+        if not name.startswith("head.") and (other is None or not torch.equal(value, other)):
+            raise EdeflareError(
+                f"{teacher}: the teacher's network differs from that of {base} ({name}): its "
+                "head reads another network's logits"
+            )
+    if head.context and not context:
+        raise EdeflareError(
+            f"{teacher}: the teacher reads a context of the windows' cells: train the student "
+            "with a context too (--context K)"
+        )
+    return head
+
+
+def teacher_targets(
+    teacher: str | os.PathLike[str],
+    base: str | os.PathLike[str],
+    features: Sequence[str],
+    data: dict[str, np.ndarray],
+) -> np.ndarray:
+    """The keep probability that ``teacher``, a trained head (or ensemble) over the network of
+    ``base``, gives each row of ``data``: what a distilled head learns instead of the labels.
+
+    The teacher must read ``features`` (in that order) and the same network as ``base``
+    (the rows' features and cells come from it); where it has a context, ``data`` must hold
+    the windows' cells (:func:`load_teacher` checks).
+    """
+    has_cells = any(k.startswith("cells_") for k in data)
+    head = load_teacher(teacher, base, features, context=has_cells)
+    columns = context_columns(head, data) if head.context else data["x"]
+    logits = head_logits(head.numpy_params(), columns).astype(np.float64)
+    return (1.0 / (1.0 + np.exp(-(logits + LN3)))).astype(np.float32)
+
+
 def fit_head(
-    x: np.ndarray, y: np.ndarray, config: HeadTrainingConfig, *, progress: bool = True
+    x: np.ndarray,
+    y: np.ndarray,
+    config: HeadTrainingConfig,
+    *,
+    targets: np.ndarray | None = None,
+    progress: bool = True,
 ) -> EventHead:
     """A head fitted to features ``x`` and labels ``y`` (True: keep), classes weighed alike
-    (without a context: :func:`fit_context_head` learns one)."""
+    (without a context: :func:`fit_context_head` learns one). ``targets``: keep
+    probabilities to learn instead of the labels (a teacher's, :func:`teacher_targets`);
+    the labels still weigh the classes."""
     torch.manual_seed(config.seed)
     head = EventHead(config.features, config.hidden)
     xt = torch.from_numpy(np.ascontiguousarray(x, np.float32))
-    yt = torch.from_numpy(y.astype(np.float32))
+    weight = _class_weights(torch.from_numpy(y.astype(np.float32)))
+    yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32))
     head.standardise_on(xt)
-    weight = _class_weights(yt)
     gen = torch.Generator().manual_seed(config.seed)
     size = config.batch_size
 
@@ -384,11 +450,16 @@ def _optimise(
 
 
 def fit_context_head(
-    data: dict[str, np.ndarray], config: HeadTrainingConfig, *, progress: bool = True
+    data: dict[str, np.ndarray],
+    config: HeadTrainingConfig,
+    *,
+    targets: np.ndarray | None = None,
+    progress: bool = True,
 ) -> EventHead:
     """A head with a context of ``config.context`` maps fitted to :func:`collect_features`'
     output (the rows with their windows' cells): each step learns from the drawn events of
-    ``config.batch_windows`` windows of one sensor size, classes weighed alike."""
+    ``config.batch_windows`` windows of one sensor size, classes weighed alike.
+    ``targets``: keep probabilities to learn instead of the labels, as :func:`fit_head`."""
     torch.manual_seed(config.seed)
     y = data["y"]
     cells0 = data["cells_000000"]
@@ -404,8 +475,8 @@ def fit_context_head(
     head.standardise_on(  # the cells of windows of every size, as (1, channels, 1, cells)
         torch.from_numpy(np.asarray(data["x"], np.float32)), torch.from_numpy(flat)[None, :, None]
     )
-    yt = torch.from_numpy(y.astype(np.float32))
-    weight = _class_weights(yt)
+    weight = _class_weights(torch.from_numpy(y.astype(np.float32)))
+    yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32))
     rows = _rows_of(data)
     rng = np.random.default_rng(config.seed)
 
@@ -500,19 +571,27 @@ def train_head(
     config: HeadTrainingConfig | None = None,
     *,
     command: str = "",
+    teacher: str | os.PathLike[str] | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
     """Train a keep head on ``data``'s training splits over the ``base_weights`` mask
     network; write ``run_dir/model.safetensors`` (network, head, card with the threshold
-    chosen on the test splits) and ``run_dir/head.json``; return that summary."""
+    chosen on the test splits) and ``run_dir/head.json``; return that summary.
+
+    ``teacher``: a trained head's weights over the same network (an ensemble, typically):
+    the head learns the teacher's keep probabilities instead of the labels (distillation:
+    one small head that decides like many).
+    """
     from .infer import ModelDeflarer
     from .weights import read_card, save_model
 
     config = config or HeadTrainingConfig()
+    base = Path(base_weights)
+    if teacher is not None:  # before anything is read or written
+        load_teacher(teacher, base, config.features, context=bool(config.context))
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
     folders = [part for d in data for part in dataset_folders(d)]
-    base = Path(base_weights)
     card = read_card(base)
     # the base network's own keep logits: its rules off, any head of its own left out
     deflarer = ModelDeflarer(base, runtime="torch", batch_windows=1, **{k: 0 for k in card.rules})
@@ -536,10 +615,11 @@ def train_head(
             ),
         )  # fmt: skip
     train, val = sets["train"], sets["test"]
+    targets = None if teacher is None else teacher_targets(teacher, base, config.features, train)
     heads = [
-        fit_context_head(train, member, progress=progress)
+        fit_context_head(train, member, targets=targets, progress=progress)
         if config.context
-        else fit_head(train["x"], train["y"], member, progress=progress)
+        else fit_head(train["x"], train["y"], member, targets=targets, progress=progress)
         for member in (
             dataclasses.replace(config, seed=config.seed + i) for i in range(config.members)
         )
@@ -559,8 +639,9 @@ def train_head(
         command=command or f"train_head({[str(d) for d in data]!r}, {str(base)!r})",
         data=" ".join(str(d) for d in folders),
         metrics={"head_validation_score": max(r["score"] for r in table)},
-        notes=f"a learned keep head over the network of {base.name}, threshold chosen on "
-        "the data's test splits",
+        notes=f"a learned keep head over the network of {base.name}"
+        + ("" if teacher is None else f", distilled from {Path(teacher).name}")
+        + ", threshold chosen on the data's test splits",
     )
     save_model(run / "model.safetensors", net, card)
     summary = {
@@ -574,6 +655,9 @@ def train_head(
         "base_weights": str(base),
         "base_sha256": file_sha256(base),
     }
+    if teacher is not None:
+        summary["teacher"] = str(teacher)
+        summary["teacher_sha256"] = file_sha256(Path(teacher))
     with atomic_path(run / "head.json") as tmp:
         tmp.write_text(json.dumps(summary, indent=1) + "\n")
     return summary
