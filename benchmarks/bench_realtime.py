@@ -35,8 +35,11 @@ checkout (``git worktree add /tmp/old COMMIT``), run from its own source in the 
 run, and a ``vs_baseline`` column (its time over each row's): the comparable number on
 a machine whose speed drifts. The repeats go round all methods of a case in turn.
 
+``--model WEIGHTS`` (repeatable) adds a row per case for another model (a bundled
+model's name or a weights file), with the default runtime (``auto``).
+
 Run: ``python benchmarks/bench_realtime.py [--quick] [--repeat N] [--only-street]
-[--baseline-src CHECKOUT]``
+[--model WEIGHTS] [--baseline-src CHECKOUT]``
 """
 
 from __future__ import annotations
@@ -145,6 +148,14 @@ def main() -> None:
         help="the tiled Gen4.1 street case alone (writes realtime_street.json)",
     )
     parser.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="WEIGHTS",
+        help="also time this model (a bundled model's name or a .safetensors file; "
+        "repeatable) on every case, with the default runtime",
+    )
+    parser.add_argument(
         "--baseline-src",
         metavar="CHECKOUT",
         help="also time the default model of another checkout of edeflare (e.g. a git "
@@ -184,6 +195,8 @@ def main() -> None:
                 ("mask.fast", {"weights": models["mask.fast"], "runtime": "onnx"}),
             )
         ]
+        extra = [(f"model {Path(w).stem}", "model", {"weights": w}) for w in args.model]
+        methods += extra
         methods += [(m, m, {}) for m in ("raw", "efr", "pfd-a", "pfd-b", "dv-fastdecay")]
         cases: list[tuple[Path, tuple[int, int], str, list[tuple[str, str, dict[str, str]]]]] = []
         if not args.only_street:
@@ -200,6 +213,7 @@ def main() -> None:
             ]
             one_view = {**dense[0][2], "phase_shift_us": 0}
             dense.insert(1, ("model mask.pixel (onnx, one view)", "model", one_view))
+            dense += extra
             dense += [(m, m, {}) for m in ("raw", "pfd-a", "dv-fastdecay")]
             cases.append((street, street_size, "Gen4.1 street x20", dense))
         elif not args.quick:
