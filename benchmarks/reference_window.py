@@ -37,13 +37,14 @@ without it (the card before that); with ``--eflare`` also the previous default
 ``dv-fastdecay``, the filter the report compared with: ``vs fastdecay`` is each row's
 combined score over its.
 
-Run: ``python benchmarks/reference_window.py [--eflare]``; writes
+Run: ``python benchmarks/reference_window.py [--eflare] [--model WEIGHTS]``; writes
 ``results/reference_window.json`` (about a minute).
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -107,8 +108,8 @@ def reference_window(core: int = 4, seed: int = 0, picture: Path = PICTURE) -> n
     return sort_events(ev)
 
 
-def methods(eflare: bool = False) -> dict[str, tuple[str, dict]]:
-    """Row label -> (method, parameters)."""
+def methods(eflare: bool = False, models: Sequence[str] = ()) -> dict[str, tuple[str, dict]]:
+    """Row label -> (method, parameters); ``models``: more weights (names or files)."""
     rows = {"raw": ("raw", {}), "efr": ("efr", {}), "pfd-a": ("pfd-a", {}), "pfd-b": ("pfd-b", {})}
     for name in ("dv-fastdecay", "dv-bafilter", "dv-knoise"):
         if name in list_methods():
@@ -121,6 +122,8 @@ def methods(eflare: bool = False) -> dict[str, tuple[str, dict]]:
     rows["default, no light-free support"] = ("model", {"light_free_support": 0})
     if eflare:
         rows["eflare (previous default)"] = ("model", {"weights": "eflare"})
+    for weights in models:
+        rows[f"model {Path(weights).stem}"] = ("model", {"weights": weights})
     return rows
 
 
@@ -132,6 +135,13 @@ def main() -> None:
         action="store_true",
         help="also the previous default eflare (3 minutes a case on 2 cores)",
     )
+    parser.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="WEIGHTS",
+        help="also this model (a bundled model's name or a .safetensors file; repeatable)",
+    )
     args = parser.parse_args()
     if not PICTURE.is_file():
         raise SystemExit(f"{PICTURE} is missing: the reference picture is needed")
@@ -139,8 +149,9 @@ def main() -> None:
     rows = []
     for core in args.cores:
         ev = reference_window(core)
+        rows_of = methods(args.eflare, args.model)
         outputs = {label: deflare(ev, SENSOR, name, rng=0, **params)
-                   for label, (name, params) in methods(args.eflare).items()}  # fmt: skip
+                   for label, (name, params) in rows_of.items()}  # fmt: skip
         scores = score_events(ev, outputs, lights, SENSOR)
         ref = {s.method: s.combined for s in scores}.get("dv-fastdecay", float("nan"))
         for s in scores:
