@@ -17,7 +17,9 @@ The recipe (``edeflare train-head``):
    kept: real recordings often hold no light, and simulated pairs always do.
 3. **Fit.** :class:`~edeflare.models.event_head.EventHead`, standardised on its
    training events, trained with Adam on the balanced cross-entropy of
-   :math:`\sigma(h + \ln 3)` (the mask's keep probability).
+   :math:`\sigma(h + \ln 3)` (the mask's keep probability) against the labels, or,
+   distilled, against a trained teacher head's keep probabilities
+   (:func:`teacher_targets`).
 4. **Threshold.** On the test splits of the same datasets (sequences never
    trained on; never a real recording) the keep threshold is the one with the best
    mean, over the datasets, of the harmonic mean of flare removed and scene kept.
