@@ -15,8 +15,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from edeflare.methods import deflare
 from edeflare.io import read_events
+from edeflare.methods import deflare
 from edeflare.viz import event_frame, grid, save_image
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"

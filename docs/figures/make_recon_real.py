@@ -19,8 +19,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from edeflare.methods import create_method
 from edeflare.eval.downstream import reconstruct_recording
+from edeflare.methods import create_method
 from edeflare.viz import save_image
 
 RECORDINGS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
