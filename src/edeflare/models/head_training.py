@@ -384,10 +384,27 @@ def teacher_targets(
     the windows' cells (:func:`load_teacher` checks).
     """
     has_cells = any(k.startswith("cells_") for k in data)
-    head = load_teacher(teacher, base, features, context=has_cells)
+    return _head_probabilities(load_teacher(teacher, base, features, context=has_cells), data)
+
+
+def _head_probabilities(
+    head: EventHead | EventHeadEnsemble, data: dict[str, np.ndarray]
+) -> np.ndarray:
+    """``head``'s keep probability of each row of ``data`` (float32)."""
     columns = context_columns(head, data) if head.context else data["x"]
-    logits = head_logits(head.numpy_params(), columns).astype(np.float64)
-    return (1.0 / (1.0 + np.exp(-(logits + LN3)))).astype(np.float32)
+    return _keep_probability(head_logits(head.numpy_params(), columns)).astype(np.float32)
+
+
+def _keep_probability(logits: np.ndarray) -> np.ndarray:
+    """A head's keep probability of its keep ``logits``: :math:`\\sigma(h + \\ln 3)`, the
+    mask's (float64).
+
+    Examples
+    --------
+    >>> _keep_probability(np.array([-math.log(3.0)])).tolist()
+    [0.5]
+    """
+    return 1.0 / (1.0 + np.exp(-(np.asarray(logits, np.float64) + LN3)))
 
 
 def fit_head(
@@ -512,7 +529,7 @@ def choose_threshold(
     """
     from ..eval.score import combined_score  # the scorer's harmonic mean of defined terms
 
-    prob = 1.0 / (1.0 + np.exp(-(logits.astype(np.float64) + LN3)))
+    prob = _keep_probability(logits)
     table = []
     for thr in np.round(np.arange(0.05, 0.951, 0.05), 2):
         kept = prob > thr
@@ -589,8 +606,11 @@ def train_head(
 
     config = config or HeadTrainingConfig()
     base = Path(base_weights)
-    if teacher is not None:  # before anything is read or written
-        load_teacher(teacher, base, config.features, context=bool(config.context))
+    teacher_head = (  # checked before anything is read or written
+        None
+        if teacher is None
+        else load_teacher(teacher, base, config.features, context=bool(config.context))
+    )
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
     folders = [part for d in data for part in dataset_folders(d)]
@@ -617,7 +637,7 @@ def train_head(
             ),
         )  # fmt: skip
     train, val = sets["train"], sets["test"]
-    targets = None if teacher is None else teacher_targets(teacher, base, config.features, train)
+    targets = None if teacher_head is None else _head_probabilities(teacher_head, train)
     heads = [
         fit_context_head(train, member, targets=targets, progress=progress)
         if config.context
