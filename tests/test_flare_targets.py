@@ -1,4 +1,5 @@
-"""benchmarks/flare_targets.py: the eflare-forward target's code path on a small forward set."""
+"""benchmarks/flare_targets.py: the eflare-forward and eflare-mini targets' code paths on
+small simulated sets."""
 
 from __future__ import annotations
 
@@ -49,3 +50,25 @@ def test_the_eflare_forward_target_scores_every_method(flare_targets, tmp_path):
     assert chamfer["measured"] == round(ratio, 4) and (chamfer["met"] == "yes") == (ratio <= 0.6)
     oracle = means["keep-only oracle"]["chamfer"] / means["raw"]["chamfer"]
     assert chamfer["note"] == f"keep-only oracle {oracle:.3f}" and oracle < 1.0
+
+
+def test_the_mini_target_shows_what_deleting_can_reach(flare_targets, tmp_path, monkeypatch):
+    small = RECIPES["eflare-mini"].replace(
+        sequences=2, test_sequences=2, sensor_size=(64, 48), duration_us=40_000
+    )
+    generate_dataset(small, tmp_path / "mini", progress=False)
+    files = sorted((tmp_path / "mini" / "test").glob("*.h5"))
+    monkeypatch.setattr(flare_targets, "_dataset", lambda *a, **k: files)
+    rows, verdicts = flare_targets.mini_split(argparse.Namespace(data=tmp_path, model=None))
+    means = {r.pop("method"): r for r in rows}
+    assert list(means) == ["raw", "model", "eflare", "keep-only oracle"]
+    per_metric, reach, speed = verdicts[:8], verdicts[8], verdicts[9]
+    for verdict, m in zip(per_metric, METRICS, strict=True):
+        oracle_worse = flare_targets._better(m, means["eflare"][m], means["keep-only oracle"][m])
+        assert verdict["note"] == f"keep-only oracle {means['keep-only oracle'][m]:.4f}" + (
+            ", worse" if oracle_worse else ""
+        )
+        met = not flare_targets._better(m, means["eflare"][m], means["model"][m])
+        assert verdict["met"] == ("yes" if met else "NO")
+    assert reach["measured"] == sum(", worse" not in v["note"] for v in per_metric)
+    assert speed["target"].startswith("speed")
