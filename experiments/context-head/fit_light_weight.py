@@ -44,7 +44,7 @@ def main() -> None:
     a = ap.parse_args()
     base = head_training._class_weights
     column = list(FEATURES).index("light_distance")
-    near = {}
+    near: dict[str, np.ndarray] = {}
 
     def cached(path, make):  # remember which training rows lie near a light
         data = original_cached(path, make)
@@ -78,7 +78,11 @@ def main() -> None:
         a.run,
         config,
         progress=False,
-        command=f"fit_light_weight.py --weight {a.weight}",
+        command=(
+            f"fit_light_weight.py {a.data} {a.run} --weight {a.weight} "
+            f"--scene-weight {a.scene_weight} --hidden {a.hidden} --context {a.context} "
+            f"--members {a.members} --epochs {a.epochs}"
+        ),
     )
     print(
         f"keep threshold {summary['keep_threshold']:.2f}, "
