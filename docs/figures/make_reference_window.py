@@ -6,8 +6,8 @@ Run from the repository root, with ``../shared/reference/`` present::
 
 One 100 ms window of ``benchmarks/reference_window.py``'s proxy (the lights' pixels
 firing 4 times a window), cropped to the picture's panel: the input, the default with
-the card of 2026-11-27's sixth session (the light-free support alone), the default, and
-dv-processing's FastDecayNoiseFilter. Each method runs on the whole second; the figure shows its first
+an earlier card (the light-free support alone), the default, and dv-processing's
+FastDecayNoiseFilter. Each method runs on the whole second; the figure shows its first
 window. ON red, OFF blue (``edeflare.viz.event_frame``).
 """
 

@@ -1,6 +1,8 @@
-"""Residual head experiment: keep logit = network logit + MLP(features), folded into a plain head."""
+"""Residual head experiment: keep logit = network logit + MLP(features), folded into a
+plain head."""
 
 import dataclasses
+import glob
 import sys
 import time
 
@@ -17,7 +19,6 @@ lam = float(sys.argv[1])
 out = sys.argv[2]
 epochs = int(sys.argv[3]) if len(sys.argv) > 3 else 4
 R = sys.argv[4] if len(sys.argv) > 4 else "runs/head-night2/"  # train-head's feature caches
-import glob
 
 tr = np.load(glob.glob(R + "/features-train-*.npz")[0])
 te = np.load(glob.glob(R + "/features-test-*.npz")[0])

@@ -16,7 +16,8 @@ for w in sys.argv[1:]:
             R + f, ["model"], lights=A + a, method_params={"model": {"weights": w}}
         ).rows[0]
         line.append(
-            f"{f[:5]} fr {r.flare_removed:.3f} lk {r.light_kept:.3f} bk {r.background_kept:.3f} c {r.combined:.3f}"
+            f"{f[:5]} fr {r.flare_removed:.3f} lk {r.light_kept:.3f} "
+            f"bk {r.background_kept:.3f} c {r.combined:.3f}"
         )
     for f in (
         "davis346_street_cars.aedat4",
