@@ -20,6 +20,7 @@ import math
 import numpy as np
 import torch
 
+from edeflare.cli.train_head import _widths  # the CLI's parsing of --hidden
 from edeflare.models import head_training
 from edeflare.models.event_features import FEATURES
 from edeflare.models.head_training import HeadTrainingConfig, train_head
@@ -37,7 +38,7 @@ def main() -> None:
         default=1.0,
         help="weight of the events of the scene alone (windows without a light, all kept)",
     )
-    ap.add_argument("--hidden", default="8")
+    ap.add_argument("--hidden", type=_widths, default=(8,), help="as train-head's")
     ap.add_argument("--context", type=int, default=8)
     ap.add_argument("--members", type=int, default=3)
     ap.add_argument("--epochs", type=int, default=12)
@@ -67,7 +68,7 @@ def main() -> None:
 
     head_training._class_weights = class_weights
     config = HeadTrainingConfig(
-        hidden=tuple(int(v) for v in a.hidden.split(",") if v),
+        hidden=a.hidden,
         context=a.context,
         members=a.members,
         epochs=a.epochs,
@@ -80,7 +81,8 @@ def main() -> None:
         progress=False,
         command=(
             f"fit_light_weight.py {a.data} {a.run} --weight {a.weight} "
-            f"--scene-weight {a.scene_weight} --hidden {a.hidden} --context {a.context} "
+            f"--scene-weight {a.scene_weight} --hidden {','.join(map(str, a.hidden))} "
+            f"--context {a.context} "
             f"--members {a.members} --epochs {a.epochs}"
         ),
     )
