@@ -1,5 +1,8 @@
 """`train-head` with the kept events near a light weighed more in the loss.
 
+(`edeflare train-head --light-weight` now weighs the light's own events, flagged by the
+pair's `light` stream; this script keeps the study's proxy to reproduce its runs.)
+
 The real targets ask more of the light (>= 95 % kept) than of the flare (>= 85 % removed).
 This fits heads as `edeflare train-head` does, on the same cached events, with one change:
 each kept training event within one radius of a light's centre (its `light_distance`
@@ -43,7 +46,7 @@ def main() -> None:
     ap.add_argument("--members", type=int, default=3)
     ap.add_argument("--epochs", type=int, default=12)
     a = ap.parse_args()
-    base = head_training._class_weights
+    base = head_training.loss_weights
     column = list(FEATURES).index("light_distance")
     near: dict[str, np.ndarray] = {}
 
@@ -57,16 +60,16 @@ def main() -> None:
     original_cached = head_training._cached
     head_training._cached = cached
 
-    def class_weights(yt: torch.Tensor) -> torch.Tensor:
-        w = base(yt)
+    def class_weights(y: np.ndarray, config: HeadTrainingConfig, **_: object) -> torch.Tensor:
+        w = base(y, config)  # the class weights alone
         rows = near["rows"]
-        if rows.size == yt.numel():  # the training set (the validation set is not weighed)
-            boost = np.where(rows & (yt.numpy() > 0.5), a.weight, 1.0)
+        if rows.size == y.size:  # the training set (the validation set is not weighed)
+            boost = np.where(rows & y, a.weight, 1.0)
             boost = torch.from_numpy(np.where(near["alone"], a.scene_weight, boost))
             w = w * boost.to(w.dtype)
         return w
 
-    head_training._class_weights = class_weights
+    head_training.loss_weights = class_weights
     config = HeadTrainingConfig(
         hidden=a.hidden,
         context=a.context,

@@ -12,6 +12,7 @@ import torch
 
 from conftest import random_events, same_events
 from edeflare import deflare
+from edeflare.errors import EdeflareError
 from edeflare.events import make_events
 from edeflare.io.dsec import write_dsec_groups
 from edeflare.models import create_model
@@ -372,6 +373,68 @@ def test_the_flare_free_recording_is_learned_from_with_every_event_kept(tmp_path
     assert set(got["source"].tolist()) == {0, 1}  # off by default
 
 
+def test_the_lights_own_events_are_flagged_at_collection(tmp_path, rng):
+    from edeflare.models.head_training import collect_features
+
+    scene = random_events(rng, 400, (32, 24), t0=0, span_us=40_000)
+    flare = random_events(rng, 300, (32, 24), t0=0, span_us=40_000)
+    light = make_events(np.arange(50) * 800, np.full(50, 31), np.full(50, 23), np.ones(50))
+    inp = np.sort(np.concatenate([scene, flare, light]), order="t", kind="stable")
+    path = tmp_path / "p.h5"
+    groups = {"input": inp, "gt": scene, "light": light, "background": scene}
+    write_dsec_groups(path, groups, (32, 24))
+
+    def logits(batch, size):
+        return [np.zeros(ev.size, np.float32) for _, ev in batch]
+
+    config = HeadTrainingConfig(features=("polarity",), val_per_window=10_000)
+    got = collect_features([path], logits, 20_000, config, balanced=False, progress=False)
+    pair = got["source"] == 0
+    # the light's 50 events (its own pixel, none of the scene's or flare's there) are
+    # flagged and kept; the scene alone's rows never are
+    corner = keep_labels(inp, light, config.tolerance_us).sum()
+    assert got["light"].sum() == corner == 50
+    assert got["y"][got["light"]].all() and not got["light"][~pair].any()
+    assert got["y"][pair].sum() == scene.size + 50
+
+
+def test_loss_weights_raise_the_lights_and_the_lone_scenes_rows_only():
+    from edeflare.models.head_training import FLARE_FREE_SOURCE, loss_weights
+
+    y = np.array([False, True, True, True, True])
+    source = np.array([0, 0, 0, -1, FLARE_FREE_SOURCE])
+    light = np.array([False, True, False, False, False])
+    plain = loss_weights(y, HeadTrainingConfig()).tolist()
+    assert plain == pytest.approx([2.5, 0.625, 0.625, 0.625, 0.625])  # 0.5 / 0.2, 0.5 / 0.8
+    both = HeadTrainingConfig(light_weight=3.0, scene_weight=2.0)
+    got = loss_weights(y, both, light=light, source=source).tolist()
+    assert got == pytest.approx([2.5, 1.875, 0.625, 1.25, 0.625])  # flare-free twin: x1
+    with pytest.raises(EdeflareError, match="light_weight needs the rows' light flags"):
+        loss_weights(y, both, source=source)
+    with pytest.raises(EdeflareError, match="light_weight must be a positive number"):
+        HeadTrainingConfig(light_weight=-1.0)
+
+
+def test_a_heavier_light_raises_the_keep_probability_of_what_features_cannot_tell(rng):
+    from edeflare.models.head_training import _keep_probability, fit_head
+
+    # one feature that says nothing: the best constant keep probability is the weighed
+    # share of kept rows; half the kept rows are the light's
+    n = 4_000
+    x = rng.normal(size=(n, 1))
+    y = np.arange(n) % 2 == 0
+    light = y & (np.arange(n) % 4 == 0)
+    config = HeadTrainingConfig(features=("polarity",), hidden=(4,), epochs=40, batch_size=500)
+    means = []
+    for weight in (1.0, 3.0):  # keep weight 0.5 -> 0.25 * 3 + 0.25 = 1.0 against flare 0.5
+        cfg = dataclasses.replace(config, light_weight=weight)
+        head = fit_head(x, y, cfg, light=light, source=np.zeros(n, int), progress=False)
+        logits = head_logits(head.numpy_params(), x.astype(np.float32))
+        means.append(float(_keep_probability(logits).mean()))
+    assert means[0] == pytest.approx(0.5, abs=0.04)
+    assert means[1] == pytest.approx(2 / 3, abs=0.04)
+
+
 def test_a_model_with_a_head_is_bundled_with_its_tensors_unchanged(tmp_path):
     from edeflare.models.bundle import bundle_weights
     from edeflare.models.weights import read_tensors
@@ -483,6 +546,8 @@ def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng):
         (["--context", "2", "--context-widths", ""], "--context-widths needs at least one width"),
         (["--context-widths", "8,0"], "widths must be positive integers"),
         (["--members", "0"], "--members must be at least 1"),
+        (["--light-weight", "0"], "--light-weight must be positive, got 0.0"),
+        (["--scene-weight", "nan"], "--scene-weight must be positive, got nan"),
     ],
 )
 def test_train_head_refuses_a_bad_context_before_reading_data(tmp_path, capsys, args, message):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import shlex
 import sys
 from pathlib import Path
@@ -79,6 +80,22 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         default=(16, 32, 64, 64),
         help="level widths of the context's U-Net",
     )
+    p.add_argument(
+        "--light-weight",
+        type=float,
+        default=1.0,
+        metavar="W",
+        help="weigh the light's own events (matched to each pair's light stream) W times their "
+        "class in the loss",
+    )
+    p.add_argument(
+        "--scene-weight",
+        type=float,
+        default=1.0,
+        metavar="W",
+        help="weigh the events of each pair's scene alone (a recording without a light) W "
+        "times their class in the loss",
+    )
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--seed", type=int, default=0)
@@ -114,8 +131,10 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--context must be 0 or more, got {args.context}")
     if not args.context_widths:
         raise ParameterError("--context-widths needs at least one width")
-    if not args.lr > 0:
-        raise ParameterError(f"--lr must be positive, got {args.lr}")
+    for name in ("lr", "light_weight", "scene_weight"):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value > 0):
+            raise ParameterError(f"--{name.replace('_', '-')} must be positive, got {value}")
     features = (
         tuple(FEATURES)
         if args.features is None
@@ -134,6 +153,8 @@ def run(args: argparse.Namespace) -> int:
         lr=args.lr,
         seed=args.seed,
         members=args.members,
+        light_weight=args.light_weight,
+        scene_weight=args.scene_weight,
     )
     command = "edeflare " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "edeflare train-head"
     summary = train_head(

@@ -72,6 +72,7 @@ __all__ = [
     "fit_head",
     "keep_labels",
     "load_teacher",
+    "loss_weights",
     "teacher_targets",
     "train_head",
 ]
@@ -137,6 +138,13 @@ class HeadTrainingConfig:
     flare_free_windows: bool = False
     """Also learn from the windows of each pair's ground truth alone, every event kept: a
     flare-free recording of the same scene, its light included (every pair has one)."""
+    light_weight: float = 1.0
+    """Loss weight of the light's own events (a pair's input events matched to its
+    ``light`` stream, the source through the clean lens), times their class's weight: the
+    real targets ask more of a light (95 % kept) than of its flare (85 % removed)."""
+    scene_weight: float = 1.0
+    """Loss weight of the events of the scene alone (``light_free_windows``: a recording
+    without a light, every event kept), times their class's weight."""
     context: int = 0
     """Channels of a learned whole-frame context (0: none): a cell U-Net on the network's
     inputs and keep logits, trained with the head (:class:`EventHead`)."""
@@ -158,6 +166,10 @@ class HeadTrainingConfig:
             raise EdeflareError(f"members must be a positive integer, got {self.members!r}")
         if self.members < 1:
             raise EdeflareError(f"members must be at least 1, got {self.members}")
+        for name in ("light_weight", "scene_weight"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise EdeflareError(f"{name} must be a positive number, got {value!r}")
 
 
 def _windows(events: np.ndarray, start: int, end: int, window_us: int):
@@ -181,7 +193,8 @@ def collect_features(
     desc: str = "features",
     cell_scale: int = 8,
 ) -> dict[str, np.ndarray]:
-    """Features, labels and each row's file index of the events drawn from ``files``.
+    """Features, labels and each row's file index of the events drawn from ``files``
+    (``x``, ``y``, ``source``), and which rows are the light's own events (``light``).
 
     ``window_logits`` is the base network's per-event keep logits of a batch of
     windows (:meth:`~edeflare.models.infer.ModelDeflarer.window_logits`, no rules).
@@ -190,7 +203,7 @@ def collect_features(
     cell of ``cell_scale`` pixels (``window``, ``cell``).
     """
     rng = np.random.default_rng(config.seed)
-    xs, ys, fs = [], [], []
+    xs, ys, ls, fs = [], [], [], []
     # with a context: each window's cells (float16) and each row's window and cell
     cells: list[np.ndarray] = []
     wins, cell_of, sizes = [], [], []
@@ -198,15 +211,18 @@ def collect_features(
         inp, gt, size, start, end = read_sequence(path)
         labels = keep_labels(inp, gt, config.tolerance_us)
         light = _component(path, "light")
+        of_light = np.zeros(inp.size, bool)
         if light is not None:  # the light source itself is scene, not flare
-            labels |= keep_labels(inp, light, config.tolerance_us)
-        streams = [(inp, labels, k)]
+            of_light = keep_labels(inp, light, config.tolerance_us)
+            labels |= of_light
+        streams = [(inp, labels, of_light, k)]
         scene = _component(path, "background") if config.light_free_windows else None
         if scene is not None:  # the scene alone, as a recording without a light sees it
-            streams.append((scene, np.ones(scene.size, bool), -1 - k))
+            streams.append((scene, np.ones(scene.size, bool), np.zeros(scene.size, bool), -1 - k))
         if config.flare_free_windows:  # the clean lens's recording of the same scene
-            streams.append((gt, np.ones(gt.size, bool), FLARE_FREE_SOURCE - k))
-        for events, truth, source in streams:
+            streams.append((gt, np.ones(gt.size, bool), np.zeros(gt.size, bool),
+                            FLARE_FREE_SOURCE - k))  # fmt: skip
+        for events, truth, lit, source in streams:
             for s, part in _windows(events, start, end, window_us):
                 ev = events[part]
                 window_cells: list[np.ndarray] | None = None
@@ -226,6 +242,7 @@ def collect_features(
                     take = _draw(rng, np.arange(ev.size), config.val_per_window)
                 xs.append(f[take])
                 ys.append(y[take])
+                ls.append(lit[part][take])
                 fs.append(np.full(take.size, source, np.int32))
                 if window_cells is not None:
                     wins.append(np.full(take.size, len(cells), np.int32))
@@ -235,7 +252,12 @@ def collect_features(
                     sizes.append(size)
     if not xs:
         raise EdeflareError("no events to learn from in " + ", ".join(map(str, files[:3])))
-    out = {"x": np.concatenate(xs), "y": np.concatenate(ys), "source": np.concatenate(fs)}
+    out = {
+        "x": np.concatenate(xs),
+        "y": np.concatenate(ys),
+        "light": np.concatenate(ls),
+        "source": np.concatenate(fs),
+    }
     if config.context:
         out.update(window=np.concatenate(wins), cell=np.concatenate(cell_of))
         out["sizes"] = np.asarray(sizes, np.int32).reshape(-1, 2)
@@ -272,11 +294,41 @@ def _draw(rng: np.random.Generator, idx: np.ndarray, n: int) -> np.ndarray:
 # ----------------------------------------------------------------------------- fit
 
 
-def _class_weights(yt: torch.Tensor) -> torch.Tensor:
-    keep_share = float(yt.mean())
+def loss_weights(
+    y: np.ndarray,
+    config: HeadTrainingConfig,
+    *,
+    light: np.ndarray | None = None,
+    source: np.ndarray | None = None,
+) -> torch.Tensor:
+    """Each training row's loss weight: its class's (the two classes weigh alike), times
+    ``config.light_weight`` for the light's own events (``light``) and
+    ``config.scene_weight`` for the scene alone's (``source`` < 0, not a flare-free
+    recording's: :data:`FLARE_FREE_SOURCE`).
+
+    Examples
+    --------
+    >>> cfg = HeadTrainingConfig(light_weight=4.0, scene_weight=2.0)
+    >>> y = np.array([False, True, True, True])
+    >>> w = loss_weights(y, cfg, light=np.array([False, True, False, False]),
+    ...                  source=np.array([0, 0, 0, -1]))
+    >>> np.round(w.numpy(), 3).tolist()   # flare 0.5/0.25, keep 0.5/0.75; x4 light, x2 alone
+    [2.0, 2.667, 0.667, 1.333]
+    """
+    keep_share = float(np.mean(y))
     if not 0.0 < keep_share < 1.0:
         raise EdeflareError("the training events are all of one class (all flare or all scene)")
-    return torch.where(yt > 0.5, 0.5 / keep_share, 0.5 / (1.0 - keep_share))
+    w = np.where(y, 0.5 / keep_share, 0.5 / (1.0 - keep_share))
+    if config.light_weight != 1.0:
+        if light is None:
+            raise EdeflareError("light_weight needs the rows' light flags (collected features)")
+        w = np.where(light, w * config.light_weight, w)
+    if config.scene_weight != 1.0:
+        if source is None:
+            raise EdeflareError("scene_weight needs the rows' sources (collected features)")
+        alone = (source < 0) & (source > FLARE_FREE_SOURCE)
+        w = np.where(alone, w * config.scene_weight, w)
+    return torch.from_numpy(w.astype(np.float32))
 
 
 def _window_cells(data: dict[str, np.ndarray], ids: Sequence[int]) -> torch.Tensor:
@@ -413,16 +465,19 @@ def fit_head(
     config: HeadTrainingConfig,
     *,
     targets: np.ndarray | None = None,
+    light: np.ndarray | None = None,
+    source: np.ndarray | None = None,
     progress: bool = True,
 ) -> EventHead:
-    """A head fitted to features ``x`` and labels ``y`` (True: keep), classes weighed alike
-    (without a context: :func:`fit_context_head` learns one). ``targets``: keep
-    probabilities to learn instead of the labels (a teacher's, :func:`teacher_targets`);
-    the labels still weigh the classes."""
+    """A head fitted to features ``x`` and labels ``y`` (True: keep), rows weighed by
+    :func:`loss_weights` (``light``, ``source``: the collected rows' flags) (without a
+    context: :func:`fit_context_head` learns one). ``targets``: keep probabilities to learn
+    instead of the labels (a teacher's, :func:`teacher_targets`); the labels still weigh
+    the classes."""
     torch.manual_seed(config.seed)
     head = EventHead(config.features, config.hidden)
     xt = torch.from_numpy(np.ascontiguousarray(x, np.float32))
-    weight = _class_weights(torch.from_numpy(y.astype(np.float32)))
+    weight = loss_weights(np.asarray(y, bool), config, light=light, source=source)
     yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32))
     head.standardise_on(xt)
     gen = torch.Generator().manual_seed(config.seed)
@@ -477,8 +532,9 @@ def fit_context_head(
 ) -> EventHead:
     """A head with a context of ``config.context`` maps fitted to :func:`collect_features`'
     output (the rows with their windows' cells): each step learns from the drawn events of
-    ``config.batch_windows`` windows of one sensor size, classes weighed alike.
-    ``targets``: keep probabilities to learn instead of the labels, as :func:`fit_head`."""
+    ``config.batch_windows`` windows of one sensor size, rows weighed by
+    :func:`loss_weights`. ``targets``: keep probabilities to learn instead of the labels,
+    as :func:`fit_head`."""
     torch.manual_seed(config.seed)
     y = data["y"]
     cells0 = data["cells_000000"]
@@ -494,7 +550,9 @@ def fit_context_head(
     head.standardise_on(  # the cells of windows of every size, as (1, channels, 1, cells)
         torch.from_numpy(np.asarray(data["x"], np.float32)), torch.from_numpy(flat)[None, :, None]
     )
-    weight = _class_weights(torch.from_numpy(y.astype(np.float32)))
+    weight = loss_weights(
+        np.asarray(y, bool), config, light=data.get("light"), source=data.get("source")
+    )
     yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32))
     rows = _rows_of(data)
     rng = np.random.default_rng(config.seed)
@@ -566,7 +624,7 @@ def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kin
         del fields["flare_free_windows"]
     if config.context:  # the windows' cells are collected too
         fields["cells"] = True
-    h.update(json.dumps([fields, kind, "gt|light"], sort_keys=True).encode())
+    h.update(json.dumps([fields, kind, "gt|light", "light rows"], sort_keys=True).encode())
     for f in files:
         h.update(f"{f.parent.parent.name}/{f.parent.name}/{f.name}:{f.stat().st_size}".encode())
     return h.hexdigest()[:16]
@@ -641,7 +699,15 @@ def train_head(
     heads = [
         fit_context_head(train, member, targets=targets, progress=progress)
         if config.context
-        else fit_head(train["x"], train["y"], member, targets=targets, progress=progress)
+        else fit_head(
+            train["x"],
+            train["y"],
+            member,
+            targets=targets,
+            light=train.get("light"),
+            source=train["source"],
+            progress=progress,
+        )
         for member in (
             dataclasses.replace(config, seed=config.seed + i) for i in range(config.members)
         )
