@@ -42,6 +42,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -204,7 +205,9 @@ def main() -> None:
         "checks": checks,
         **lights.to_dict(),
     }
-    (HERE / "night_recording_lights.json").write_text(json.dumps(doc, indent=1) + "\n")
+    text = json.dumps(doc, indent=1)  # one line per innermost list (track rows, offsets)
+    text = re.sub(r"\[\s+([^\[\]{}]*?)\s+\]", lambda m: "[" + re.sub(r"\s+", " ", m[1]) + "]", text)
+    (HERE / "night_recording_lights.json").write_text(text + "\n")
     print(json.dumps(checks))
     if args.figure:
         overlay_figure(events, size, lights, args.figure)

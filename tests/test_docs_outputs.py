@@ -653,6 +653,20 @@ def test_eflare_card_numbers_are_the_benchmarks():
     assert next(r for r in _rows(page) if r[0] == "`eflare`")[1:] == want
 
 
+def test_night_recording_table_is_the_benchmarks():
+    """benchmarks.md's night-recording rows are night_recording.json's, in its units."""
+    rows = json.loads((ROOT / "benchmarks" / "results" / "night_recording.json").read_text())
+    run = {r["method"]: r for r in rows["rows"]}
+    page = _section((DOCS / "benchmarks.md").read_text(), "The real night recording, whole")
+    table = _rows(page)
+    assert len(table) >= 4
+    keys = ("halo removed", "ghost removed", "flare removed", "light kept", "background kept")
+    for row in table:
+        got = run[row[0].split()[0].strip("`")]
+        want = [f"{got[k]:.1f} %" for k in keys] + [f"{got['combined']:.3f}"]
+        assert [c.strip("*") for c in row[1:]] == want, row[0]
+
+
 # --- what the README must keep -------------------------------------------------------------
 
 
