@@ -8,7 +8,7 @@ events as its ``gen4.dat``), which is not in ``../shared``: fetch it once (about
 
     curl -LO https://files.pythonhosted.org/packages/27/a5/\
 9d5ea080aaec73f2e4641c81ea90d4c7780a655c2a48af09d997e545ed4a/faery-0.7.1.tar.gz
-    tar xzf faery-0.7.1.tar.gz faery-0.7.1/tests/data/evt3.raw
+    tar xzf faery-0.7.1.tar.gz faery-0.7.1/tests/data
 
 The script checks its sha256, annotates it (:func:`annotate`, no choice made by eye:
 the sizes are ``reference_window_lights.json``'s, made on the panel before any method
@@ -27,14 +27,18 @@ the upper-right small light (the steadiest blob: found in every 100 ms window) i
 followed window by window and the others keep their offsets from it (the medians over
 the windows where :func:`~edeflare.lights.detect_light_source` finds them).
 
+With ``--scenes faery-0.7.1/tests/data`` it also measures the share of events each method
+keeps of faery's two real recordings without a light (:data:`SCENES`; goal: >= 95 %).
+
 Run::
 
     python benchmarks/night_recording.py --recording faery-0.7.1/tests/data/evt3.raw \
-        [--model WEIGHTS ...] [--figure docs/figures/night_recording_regions.png]
+        [--scenes faery-0.7.1/tests/data] [--model WEIGHTS ...] \
+        [--figure docs/figures/night_recording_regions.png]
 
-writes ``results/night_recording.json`` and ``night_recording_lights.json`` (the
-annotation, with its checks) beside this script. No method's setting was chosen on this
-recording: it is held out for every bundled model.
+writes ``results/night_recording.json`` (``night_recording_scenes.json``) and
+``night_recording_lights.json`` (the annotation, with its checks) beside this script. No
+method's setting was chosen on these recordings: they are held out for every bundled model.
 """
 
 from __future__ import annotations
@@ -178,6 +182,38 @@ def overlay_figure(events: np.ndarray, size: tuple[int, int], lights: Lights, pa
     save_image(path, grid(frames, ncols=2, captions=captions))
 
 
+SCENES = {
+    "evt2.raw": "e84afbecdc07d2910ae846a4ae0ee246f5b9c97a53816c637d4f85c023d7c234",
+    "dvs.es": "98f9ca09e1b77ccc02bbe130a2c295ca531a29eb4d3f597d9917ddce0f26d333",
+}
+"""faery's other real recordings, neither with a light: plants and a string before a
+Prophesee Gen3 (640x480, 96 ms, 521,252 events) and an object moving before a DVS
+(320x240, 1 s, 473,225 events; ``atis.es`` holds the same events)."""
+
+
+def scenes_kept(folder: Path, models: list[str]) -> list[dict]:
+    """The share of each scene's events each method keeps (one windowing, as ``edeflare
+    deflare`` prints it): what a de-flarer should leave alone (goal: >= 95 %)."""
+    from edeflare import deflare
+
+    scenes = {}
+    for name, digest in SCENES.items():
+        if sha256(folder / name) != digest:
+            raise SystemExit(f"{folder / name}: not faery 0.7.1's {name} (sha256 differs)")
+        scenes[name] = read_events(folder / name)
+    rows = []
+    methods = [(m, m, {}) for m in ("dv-fastdecay", "pfd-a")]
+    methods += [(w, "model", {"weights": w}) for w in (*MODELS, *models)]
+    for label, method, params in methods:
+        row = {"method": Path(label).parent.name if label.endswith(".safetensors") else label}
+        for name, (events, size) in scenes.items():
+            out = deflare(events, size, method, rng=0, **params)
+            row[name] = round(100 * out.size / events.size, 1)
+        rows.append(row)
+        print(row, flush=True)
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--recording", type=Path, required=True, help="faery's evt3.raw")
@@ -188,9 +224,18 @@ def main() -> None:
         metavar="WEIGHTS",
         help="also this model (a bundled model's name or a .safetensors file; repeatable)",
     )
+    parser.add_argument(
+        "--scenes",
+        type=Path,
+        help="faery's tests/data folder: also the share of events each method keeps of its "
+        "recordings without a light (evt2.raw, dvs.es)",
+    )
     parser.add_argument("--phases", type=int, default=4, help="window phases (as flare_targets)")
     parser.add_argument("--figure", type=Path, help="also draw the regions to this PNG")
     parser.add_argument("--annotate-only", action="store_true", help="annotate, score nothing")
+    parser.add_argument(
+        "--skip-night", action="store_true", help="with --scenes: score only the scenes"
+    )
     args = parser.parse_args()
     if not args.recording.is_file():
         raise SystemExit(f"{args.recording}: no such file (see this script's docstring)")
@@ -212,6 +257,9 @@ def main() -> None:
     if args.figure:
         overlay_figure(events, size, lights, args.figure)
     if args.annotate_only:
+        return
+    if args.scenes is not None and args.skip_night:
+        report("night_recording_scenes", scenes_kept(args.scenes, args.model), ["method", *SCENES])
         return
     rows = []
     for i, weights in enumerate([*MODELS, *args.model]):
@@ -237,6 +285,8 @@ def main() -> None:
             })  # fmt: skip
         print(rows[-1], flush=True)
     report("night_recording", rows, list(rows[0]))
+    if args.scenes is not None:
+        report("night_recording_scenes", scenes_kept(args.scenes, args.model), ["method", *SCENES])
 
 
 if __name__ == "__main__":
