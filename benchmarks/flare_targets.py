@@ -10,11 +10,15 @@ whether it is met, and writes ``results/flare_targets.json``:
    recording delayed by 0, 5, 10, 15 ms): the scores are the means over them, with the
    worst phase's combined score beside (a lamp's 100 Hz flicker falls differently into
    a model's 20 ms windows at each). The real scenes without a light (DAVIS street,
-   Newton's cradle, Gen4.1 street): >= 95 % of their events kept.
+   Newton's cradle, Gen4.1 street): >= 95 % of their events kept. With ``--faery DIR``
+   (faery 0.7.1's ``tests/data``, see ``night_recording.py``) also the real night
+   recording behind the reference window, annotated, and faery's two scenes without a
+   light.
    **Leave-one-out** (:mod:`edeflare.eval.leave_one_out`): the model's keep threshold
    chosen on the other annotated recordings (Gen3, DAVIS lamps and the reference
-   window of ``reference_window.py``) and scored on the one held out, beside the
-   card's threshold (whatever chose it: the card says) and the in-sample best.
+   window of ``reference_window.py``; with ``--faery``, the night recording too) and
+   scored on the one held out, beside the card's threshold (whatever chose it: the card
+   says) and the in-sample best.
 2. **eflare-r-sim** (640x480, never trained on): better than the raw input and every
    baseline on all eight metrics, Chamfer at least 35 % below the raw input's. A
    *keep-only oracle* row (the input's events within 2 normalised units of a
@@ -41,6 +45,7 @@ the whole run takes 25-35 minutes on 2 cores. Run::
     python benchmarks/flare_targets.py [--model WEIGHTS] [--data DIR] [--real-only]
     python benchmarks/flare_targets.py --forward-only   # target 6 alone
     python benchmarks/flare_targets.py --mini-only      # targets 3 and 4 alone
+    python benchmarks/flare_targets.py --real-only --faery faery-0.7.1/tests/data
 """
 
 from __future__ import annotations
@@ -125,19 +130,36 @@ def _methods_with_oracle(args: argparse.Namespace, files: list[Path]) -> dict[st
     return methods
 
 
+def annotated(args: argparse.Namespace) -> list[tuple[str, Path, Any]]:
+    """``(file name, path, lights)`` of each annotated recording with a light that is
+    there: the bundled annotations' in ``args.real``, and with ``--faery`` the real night
+    recording (``night_recording.py``'s annotation)."""
+    found = []
+    for rec in RECORDINGS:
+        if (args.real / rec).is_file():
+            found.append((rec, args.real / rec, bundled_lights(rec)))
+        else:
+            print(f"skipped {rec}: not in {args.real}")
+    if args.faery is not None:
+        from night_recording import HERE, SHA256, sha256
+
+        path = args.faery / "evt3.raw"
+        if not path.is_file() or sha256(path) != SHA256:
+            raise SystemExit(f"{path}: not faery 0.7.1's evt3.raw (night_recording.py)")
+        lights = load_lights(HERE / "night_recording_lights.json", (1280, 720))
+        found.append(("night_recording.raw", path, lights))
+    return found
+
+
 def real_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     """Target 1: every method scored on each annotated recording."""
     rows, verdicts = [], []
-    for rec in RECORDINGS:
-        path = args.real / rec
-        if not path.is_file():
-            print(f"skipped {rec}: not in {args.real}")
-            continue
+    for rec, path, lights in annotated(args):
         params = {} if args.model is None else {"model": {"weights": args.model}}
         result = score_recording(
             path,
             ["raw", *BASELINES, "model"],
-            lights=bundled_lights(rec),
+            lights=lights,
             method_params=params,
             phases=PHASES,
         )
@@ -195,10 +217,15 @@ def no_light_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     """Target 1: the share of events the model keeps of real scenes without a light."""
     rows, verdicts = [], []
     params = {} if args.model is None else {"weights": args.model}
-    for rec in NO_LIGHT:
-        path = args.real / rec
+    paths = [args.real / rec for rec in NO_LIGHT]
+    if args.faery is not None:  # faery's scenes without a light (night_recording.py)
+        from night_recording import SCENES
+
+        paths += [args.faery / name for name in SCENES]
+    for path in paths:
+        rec = path.name
         if not path.is_file():
-            print(f"skipped {rec}: not in {args.real}")
+            print(f"skipped {rec}: not in {path.parent}")
             continue
         r = read_events(path)
         kept = deflare(r.events, r.sensor_size, "model", **params).size / r.events.size
@@ -218,8 +245,8 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
     weights = resolve_weights(args.model)
     card = read_card(weights).keep_threshold
     settings = sorted({*LOO_THRESHOLDS, round(card, 2)})
-    recordings = [r for r in RECORDINGS if (args.real / r).is_file()]
-    names = [r.split(".")[0] for r in recordings]
+    recordings = annotated(args)
+    names = [r.split(".")[0] for r, _, _ in recordings]
     window = reference_window(4) if PICTURE.is_file() else None
     if window is not None:
         names.append("reference_window")
@@ -233,10 +260,9 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
             out = deflare(window, SENSOR, "model", rng=0, **params)
             lights = load_lights(WINDOW_LIGHTS, SENSOR)
             return score_events(window, {"model": out}, lights, SENSOR)[0].combined
-        rec = recordings[names.index(name)]
+        _, path, lights = recordings[names.index(name)]
         result = score_recording(
-            args.real / rec, ["model"], lights=bundled_lights(rec),
-            method_params={"model": params}, phases=PHASES,
+            path, ["model"], lights=lights, method_params={"model": params}, phases=PHASES,
         )  # fmt: skip
         return result.rows[0].combined
 
@@ -451,6 +477,12 @@ def main() -> None:
         help="where the simulated test sets are (simulated there if absent)",
     )
     parser.add_argument("--real", type=Path, default=REAL)
+    parser.add_argument(
+        "--faery",
+        type=Path,
+        help="faery 0.7.1's tests/data folder: also its real night recording (an annotated "
+        "recording with a light, held out like the others) and its two scenes without a light",
+    )
     parser.add_argument("--no-downstream", action="store_true")
     parser.add_argument("--real-only", action="store_true", help="target 1 only (under a minute)")
     parser.add_argument("--forward-only", action="store_true", help="target 6 only")

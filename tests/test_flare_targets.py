@@ -72,3 +72,16 @@ def test_the_mini_target_shows_what_deleting_can_reach(flare_targets, tmp_path, 
         assert verdict["met"] == ("yes" if met else "NO")
     assert reach["measured"] == sum(", worse" not in v["note"] for v in per_metric)
     assert speed["target"].startswith("speed")
+
+
+def test_the_annotated_set_takes_the_night_recording_only_when_it_is_faerys(
+    flare_targets, tmp_path, capsys
+):
+    args = argparse.Namespace(real=tmp_path / "real", faery=None)
+    assert flare_targets.annotated(args) == []  # nothing there: each skipped, said so
+    assert capsys.readouterr().out.count("skipped") == len(flare_targets.RECORDINGS)
+    (tmp_path / "faery").mkdir()
+    (tmp_path / "faery" / "evt3.raw").write_bytes(b"% not the recording\n")
+    args.faery = tmp_path / "faery"
+    with pytest.raises(SystemExit, match="evt3.raw: not faery 0.7.1's evt3.raw"):
+        flare_targets.annotated(args)
