@@ -64,6 +64,29 @@ def test_features_of_a_small_window_by_hand():
     assert column(t, "since_pixel") == [round(math.log1p(v), 5) for v in (20, 2, 3, 20)]
     half = 0.5 * math.hypot(16, 8)
     assert column(t, "centre_distance")[3] == round(math.hypot(9.5 - 8, 6.5 - 4) / half, 5)
+    # the same polarity: (1, 1)'s second ON comes 5 ms after its first; its OFF is a first
+    assert column(t, "since_same") == [round(math.log1p(v), 5) for v in (20, 20, 5, 20)]
+    # one 64x64 block, bins of 1 ms from the first event (0..7: 8 bins); ON: one event in
+    # bins 0, 5 and 7 (mean 3 / 8), OFF: one in bin 2 (mean 1 / 8)
+    on, off = math.log(2 / (1 + 3 / 8)), math.log(2 / (1 + 1 / 8))
+    assert column(t, "sync_64") == [round(v, 5) for v in (on, off, on, on)]
+
+
+def test_a_flickers_bursts_stand_out_in_sync_and_steady_events_do_not():
+    # a block firing ON in the first 1 ms of every 10 ms (a 100 Hz flicker's rise) and a
+    # block firing one ON event every ms (steady motion): 20 events each in 20 ms
+    burst_t = np.repeat([0, 10_000], 10) + np.tile(np.arange(10) * 50, 2)
+    steady_t = np.arange(20) * 1_000
+    t = np.concatenate([burst_t, steady_t])
+    x = np.concatenate([np.full(20, 5), np.full(20, 100)])
+    order = np.argsort(t, kind="stable")
+    ev = make_events(t[order], x[order], np.full(40, 5)[order], np.ones(40, int))
+    table = window_features(WindowContext(ev, (128, 16), 20_000), np.zeros(40, np.float32))
+    sync = np.array(column(table, "sync_64"))
+    bins = (19_000 // 1_000) + 1  # from the first event to the last, 20 bins
+    burst, steady = x[order] == 5, x[order] == 100
+    assert sync[burst] == pytest.approx(math.log(11 / (1 + 20 / bins)), abs=1e-5)
+    assert sync[steady] == pytest.approx(math.log(2 / (1 + 20 / bins)), abs=1e-5)
 
 
 def test_rates_of_a_partly_covered_window_are_scaled_to_a_whole_one():

@@ -63,6 +63,10 @@ FEATURES: dict[str, str] = {
     "since_pixel": "log(1 + ms since its pixel's previous event of the window); "
     "log(1 + window in ms) for the pixel's first",
     "centre_distance": "distance to the sensor's centre over half its diagonal",
+    "since_same": "log(1 + ms since its pixel's previous event of the same polarity in the "
+    "window); log(1 + window in ms) for the first (a flickering light's period)",
+    "sync_64": "log((1 + events of its polarity in its 64x64 block and 1 ms) / (1 + their "
+    "mean over the window's 1 ms bins)): in a burst, as a flicker's scattered light fires",
 }
 """The per-event features, in column order, with what each holds. The ``rate_*`` counts
 are scaled to a full window where the stream covers only part of it."""
@@ -165,6 +169,46 @@ def _since_pixel(ev: np.ndarray, width: int, height: int, window_us: int) -> np.
     if last is None or last.size != n:
         last = _last_times.frame = np.full(n, -1, np.int64)
     return _gaps(ev["t"], ev["x"], ev["y"], width, window_us, last)
+
+
+def _since_same(ev: np.ndarray, width: int, height: int, window_us: int) -> np.ndarray:
+    """Microseconds since the previous event of the same pixel and polarity in the window
+    (``window_us`` for the first): :func:`_gaps` on a grid twice as wide, ON beside OFF."""
+    n = 2 * width * height
+    last = getattr(_last_times, "polarity", None)
+    if last is None or last.size != n:
+        last = _last_times.polarity = np.full(n, -1, np.int64)
+    x2 = ev["x"].astype(np.int64) * 2 + (ev["p"] != 0)
+    return _gaps(ev["t"], x2, ev["y"], 2 * width, window_us, last)
+
+
+_SYNC_BLOCK, _SYNC_BIN_US = 64, 1_000
+
+
+def _sync(ev: np.ndarray, x: np.ndarray, y: np.ndarray, on: np.ndarray, width: int) -> np.ndarray:
+    """Each event's :data:`FEATURES` ``sync_64``: the events of its polarity in its block and
+    1 ms bin against their mean over the window's bins (bins from its first event).
+
+    Examples
+    --------
+    >>> from edeflare.events import make_events
+    >>> ev = make_events([0, 100, 200, 5_000], [1, 2, 3, 4], [1, 1, 1, 1], [1, 1, 1, 1])
+    >>> x, y = ev["x"].astype(np.int64), ev["y"].astype(np.int64)
+    >>> # three in the first ms, one in the sixth: 4 / 6 a bin; log(4 / (5 / 3)), log(2 / (5 / 3))
+    >>> np.round(_sync(ev, x, y, np.ones(4), 16), 3).tolist()
+    [0.875, 0.875, 0.875, 0.182]
+    """
+    if not ev.size:
+        return np.zeros(0)
+    t = ev["t"].astype(np.int64)
+    b = (t - t[0]) // _SYNC_BIN_US
+    bins = int(b[-1]) + 1
+    blocks_wide = -(-width // _SYNC_BLOCK)
+    series = ((y // _SYNC_BLOCK) * blocks_wide + x // _SYNC_BLOCK) * 2 + on.astype(np.int64)
+    key = series * bins + b
+    counts = np.bincount(key)
+    mean = np.bincount(series, minlength=int(series.max()) + 1) / bins
+    return np.log((1.0 + counts[key]) / (1.0 + mean[series]))
 
 
 def window_features(
@@ -270,6 +314,10 @@ def window_features(
     cols["rate_window"] = np.full(n, np.log1p(n / (width * height) * scale))
     if "since_pixel" in need:
         cols["since_pixel"] = np.log1p(_since_pixel(ev, width, height, window_us) / 1000.0)
+    if "since_same" in need:
+        cols["since_same"] = np.log1p(_since_same(ev, width, height, window_us) / 1000.0)
+    if "sync_64" in need:
+        cols["sync_64"] = _sync(ev, x, y, on, width)
     if "centre_distance" in need:
         cols["centre_distance"] = _centre_distance(width, height)[pixel]
     # one feature per row while filling (contiguous writes), returned as (n, F)
