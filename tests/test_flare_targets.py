@@ -83,5 +83,5 @@ def test_the_annotated_set_takes_the_night_recording_only_when_it_is_faerys(
     (tmp_path / "faery").mkdir()
     (tmp_path / "faery" / "evt3.raw").write_bytes(b"% not the recording\n")
     args.faery = tmp_path / "faery"
-    with pytest.raises(SystemExit, match="evt3.raw: not faery 0.7.1's evt3.raw"):
+    with pytest.raises(SystemExit, match=r"evt3\.raw: not faery 0\.7\.1's evt3\.raw"):
         flare_targets.annotated(args)
