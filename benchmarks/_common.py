@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import platform
 import time
@@ -49,6 +50,17 @@ def random_events(
     ev["y"] = rng.integers(0, sensor_size[1], n)
     ev["p"] = rng.integers(0, 2, n)
     return ev
+
+
+def add_model_option(parser: argparse.ArgumentParser, what: str = "also this model") -> None:
+    """The repeatable ``--model WEIGHTS`` of the scripts that add rows for other models."""
+    parser.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="WEIGHTS",
+        help=f"{what} (a bundled model's name or a .safetensors file; repeatable)",
+    )
 
 
 def report(name: str, rows: list[dict[str, object]], columns: list[str]) -> None:

@@ -53,7 +53,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from _common import PEAK_MIB, REAL, random_events, report
+from _common import PEAK_MIB, REAL, add_model_option, random_events, report
 
 _CHILD = (
     PEAK_MIB
@@ -147,14 +147,7 @@ def main() -> None:
         action="store_true",
         help="the tiled Gen4.1 street case alone (writes realtime_street.json)",
     )
-    parser.add_argument(
-        "--model",
-        action="append",
-        default=[],
-        metavar="WEIGHTS",
-        help="also time this model (a bundled model's name or a .safetensors file; "
-        "repeatable) on every case, with the default runtime",
-    )
+    add_model_option(parser, "also time this model on every case, with the default runtime")
     parser.add_argument(
         "--baseline-src",
         metavar="CHECKOUT",

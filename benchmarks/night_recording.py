@@ -50,7 +50,7 @@ import re
 from pathlib import Path
 
 import numpy as np
-from _common import report
+from _common import add_model_option, report
 
 from edeflare import read_events
 from edeflare.eval.score import classify_events, score_recording
@@ -217,13 +217,7 @@ def scenes_kept(folder: Path, models: list[str]) -> list[dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--recording", type=Path, required=True, help="faery's evt3.raw")
-    parser.add_argument(
-        "--model",
-        action="append",
-        default=[],
-        metavar="WEIGHTS",
-        help="also this model (a bundled model's name or a .safetensors file; repeatable)",
-    )
+    add_model_option(parser)
     parser.add_argument(
         "--scenes",
         type=Path,

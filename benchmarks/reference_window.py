@@ -48,7 +48,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from _common import report
+from _common import add_model_option, report
 from PIL import Image
 
 from edeflare import list_methods
@@ -135,13 +135,7 @@ def main() -> None:
         action="store_true",
         help="also the previous default eflare (3 minutes a case on 2 cores)",
     )
-    parser.add_argument(
-        "--model",
-        action="append",
-        default=[],
-        metavar="WEIGHTS",
-        help="also this model (a bundled model's name or a .safetensors file; repeatable)",
-    )
+    add_model_option(parser)
     args = parser.parse_args()
     if not PICTURE.is_file():
         raise SystemExit(f"{PICTURE} is missing: the reference picture is needed")
