@@ -14,7 +14,7 @@ import torch
 from torch import nn
 
 from edeflare.lights.cells import covered_us
-from edeflare.models.event_features import FEATURES, window_features
+from edeflare.models.event_features import DEFAULT_FEATURES, FEATURES, window_features
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.mask_kernels import event_features, event_keep_logits, event_records
 from edeflare.models.unet2d import UNet2dLayers
@@ -54,7 +54,7 @@ def window_inputs(d: ModelDeflarer, ev: np.ndarray, start: int, size, lights=Fal
         records=rec,
     )
     ctx = WindowContext(ev, size, covered_us(ev, start, w), support)
-    f = window_features(ctx, v, tuple(FEATURES), window_us=w)
+    f = window_features(ctx, v, DEFAULT_FEATURES, window_us=w)
     cw = -(-int(size[0]) // CELL)
     cell = (ev["y"].astype(np.int64) // CELL) * cw + ev["x"].astype(np.int64) // CELL
     parts = [cellf, low]

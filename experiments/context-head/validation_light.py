@@ -17,7 +17,6 @@ import numpy as np
 
 from edeflare.data.folders import dataset_folders
 from edeflare.io.sequence import list_sequences
-from edeflare.models.event_features import FEATURES
 from edeflare.models.event_head import head_logits
 from edeflare.models.head_training import (
     _group,
@@ -26,6 +25,7 @@ from edeflare.models.head_training import (
     load_teacher,
 )
 from edeflare.models.infer import bundled_weights, resolve_weights
+from edeflare.models.weights import read_card
 
 
 def main() -> None:
@@ -40,9 +40,9 @@ def main() -> None:
     y, light = val["y"], val["light"]
     print(f"{y.size:,} validation rows, {light.sum():,} of the light's own events")
     for name in models:
-        head = load_teacher(
-            resolve_weights(name), bundled_weights("night"), tuple(FEATURES), context=True
-        )
+        weights = resolve_weights(name)
+        features = tuple(read_card(weights).head["features"])  # the head's own
+        head = load_teacher(weights, bundled_weights("night"), features, context=True)
         p = _keep_probability(head_logits(head.numpy_params(), context_columns(head, val)))
         for thr in (0.4, 0.45, 0.5, 0.6, 0.7, 0.8):
             kept = p > thr

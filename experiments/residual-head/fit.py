@@ -10,7 +10,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from edeflare.models.event_features import FEATURES
+from edeflare.models.event_features import DEFAULT_FEATURES
 from edeflare.models.event_head import EventHead, head_logits
 from edeflare.models.head_training import LN3, choose_threshold
 from edeflare.models.weights import load_model, save_model
@@ -22,7 +22,7 @@ R = sys.argv[4] if len(sys.argv) > 4 else "runs/head-night2/"  # train-head's fe
 
 tr = np.load(glob.glob(R + "/features-train-*.npz")[0])
 te = np.load(glob.glob(R + "/features-test-*.npz")[0])
-names = list(FEATURES)
+names = list(DEFAULT_FEATURES)
 k = names.index("net_logit")
 x = torch.from_numpy(tr["x"])
 y = torch.from_numpy(tr["y"].astype(np.float32))

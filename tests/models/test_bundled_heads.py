@@ -12,14 +12,14 @@ from edeflare.eval.score import score_recording
 from edeflare.io import read_events
 from edeflare.lights import bundled_lights
 from edeflare.methods import deflare
-from edeflare.models.event_features import FEATURES
+from edeflare.models.event_features import DEFAULT_FEATURES
 from edeflare.models.infer import DEFAULT_MODEL, bundled_weights
 from edeflare.models.weights import read_card, read_tensors
 
 HEADS = ("general", "learned")
 CONTEXT = {"channels": 8, "inputs": 33, "widths": [16, 32, 64, 64]}
-BUNDLED_FEATURES = [n for n in FEATURES if n not in ("since_same", "sync_64")]
-"""The features the bundled heads read: every one but the two added after them."""
+BUNDLED_FEATURES = list(DEFAULT_FEATURES)
+"""The features the bundled heads read: train-head's default, so their commands rebuild them."""
 
 
 def test_the_cards_name_their_heads_their_data_and_no_rule():

@@ -746,3 +746,26 @@ def test_a_teacher_that_does_not_fit_the_student_is_refused(tmp_path, capsys):
                  "--weights", str(base), "--teacher", str(other)])  # fmt: skip
     assert code != 0 and not (tmp_path / "run").exists()
     assert "the teacher reads the features" in capsys.readouterr().err
+
+
+def test_train_head_reads_the_default_features_and_default_stands_for_them(monkeypatch, tmp_path):
+    from edeflare.cli import main
+    from edeflare.models import head_training
+    from edeflare.models.event_features import DEFAULT_FEATURES
+
+    # the bundled heads' 21 features: their commands, which name none, rebuild them
+    assert HeadTrainingConfig().features == DEFAULT_FEATURES
+    assert len(DEFAULT_FEATURES) == 21 and "sync_64" not in DEFAULT_FEATURES
+    seen = {}
+
+    def fake(data, base, run, config, **kwargs):
+        seen["features"] = config.features
+        return {"keep_threshold": 0.5, "threshold_table": [{"score": 1.0}], "chosen_on": "x",
+                "train_events": 1}  # fmt: skip
+
+    monkeypatch.setattr(head_training, "train_head", fake)
+    args = ["train-head", str(tmp_path), "--out", str(tmp_path / "run")]
+    assert main([*args, "--features", "default,since_same,sync_64"]) == 0
+    assert seen["features"] == (*DEFAULT_FEATURES, "since_same", "sync_64")
+    assert main(args) == 0
+    assert seen["features"] == DEFAULT_FEATURES

@@ -53,8 +53,9 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     )
     p.add_argument(
         "--features",
-        help="the features, comma-separated (default: every one of "
-        "edeflare.models.event_features.FEATURES; docs/training.md lists them)",
+        help="the features, comma-separated; 'default' stands for the default set, e.g. "
+        "default,since_same,sync_64 (default: edeflare.models.event_features.DEFAULT_FEATURES, "
+        "every feature but the two flicker features; docs/training.md lists them)",
     )
     p.add_argument("--hidden", type=_widths, default=(32, 16), help="hidden widths, e.g. 32,16")
     p.add_argument(
@@ -120,7 +121,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
 def run(args: argparse.Namespace) -> int:
     """Collect the features, fit the head, choose its threshold, write the run."""
     from ..errors import ParameterError
-    from ..models.event_features import FEATURES, check_feature_names
+    from ..models.event_features import DEFAULT_FEATURES, check_feature_names
     from ..models.head_training import HeadTrainingConfig, train_head
     from ..models.infer import resolve_weights
 
@@ -135,13 +136,11 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if not (math.isfinite(value) and value > 0):
             raise ParameterError(f"--{name.replace('_', '-')} must be positive, got {value}")
-    features = (
-        tuple(FEATURES)
-        if args.features is None
-        else check_feature_names(
-            [f.strip() for f in args.features.split(",") if f.strip()], "--features"
-        )
-    )
+    features = DEFAULT_FEATURES
+    if args.features is not None:  # "default" stands for the default set
+        names = [f.strip() for f in args.features.split(",") if f.strip()]
+        expanded = [n for f in names for n in (DEFAULT_FEATURES if f == "default" else (f,))]
+        features = check_feature_names(expanded, "--features")
     config = HeadTrainingConfig(
         features=features,
         hidden=tuple(args.hidden),

@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..rules.context import WindowContext
 
-__all__ = ["FEATURES", "check_feature_names", "window_features"]
+__all__ = ["DEFAULT_FEATURES", "FEATURES", "check_feature_names", "window_features"]
 
 FEATURES: dict[str, str] = {
     "net_logit": "the mask network's keep logit (cells of the whole frame, and the pixel)",
@@ -70,6 +70,13 @@ FEATURES: dict[str, str] = {
 }
 """The per-event features, in column order, with what each holds. The ``rate_*`` counts
 are scaled to a full window where the stream covers only part of it."""
+
+DEFAULT_FEATURES: tuple[str, ...] = tuple(
+    name for name in FEATURES if name not in ("since_same", "sync_64")
+)
+"""What ``train-head`` reads unless told otherwise: every feature but the two flicker
+features, which a head of ``learned``'s form trained with them used to keep 64 % of a real
+day street that has flicker in it (``experiments/context-head``)."""
 
 NO_LIGHT_RADII = 64.0
 """The distance, in radii, given to every event of a window without a light."""

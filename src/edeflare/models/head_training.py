@@ -60,7 +60,7 @@ from ..io._atomic import atomic_path
 from ..io.sequence import file_sha256, list_sequences, read_sequence
 from ..lights.cells import covered_us
 from ..rules import WindowContext
-from .event_features import FEATURES, window_features
+from .event_features import DEFAULT_FEATURES, window_features
 from .event_head import EventHead, EventHeadEnsemble, event_cells, head_logits
 
 __all__ = [
@@ -125,7 +125,7 @@ def keep_labels(inp: np.ndarray, gt: np.ndarray, tolerance_us: int = 1_000) -> n
 class HeadTrainingConfig:
     """How a head is trained (recorded in the card's command and the caches' names)."""
 
-    features: tuple[str, ...] = tuple(FEATURES)
+    features: tuple[str, ...] = DEFAULT_FEATURES
     hidden: tuple[int, ...] = (32, 16)
     per_window: int = 2_000
     """Events of each class drawn per training window."""
