@@ -219,9 +219,12 @@ def no_light_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     params = {} if args.model is None else {"weights": args.model}
     paths = [args.real / rec for rec in NO_LIGHT]
     if args.faery is not None:  # faery's scenes without a light (night_recording.py)
-        from night_recording import SCENES
+        from night_recording import SCENES, sha256
 
-        paths += [args.faery / name for name in SCENES]
+        for name, digest in SCENES.items():
+            if not (args.faery / name).is_file() or sha256(args.faery / name) != digest:
+                raise SystemExit(f"{args.faery / name}: not faery 0.7.1's {name}")
+            paths.append(args.faery / name)
     for path in paths:
         rec = path.name
         if not path.is_file():
