@@ -141,11 +141,9 @@ def annotated(args: argparse.Namespace) -> list[tuple[str, Path, Any]]:
         else:
             print(f"skipped {rec}: not in {args.real}")
     if args.faery is not None:
-        from night_recording import HERE, SHA256, sha256
+        from night_recording import HERE, faery_file
 
-        path = args.faery / "evt3.raw"
-        if not path.is_file() or sha256(path) != SHA256:
-            raise SystemExit(f"{path}: not faery 0.7.1's evt3.raw (night_recording.py)")
+        path = faery_file(args.faery / "evt3.raw")
         lights = load_lights(HERE / "night_recording_lights.json", (1280, 720))
         found.append(("night_recording.raw", path, lights))
     return found
@@ -219,12 +217,9 @@ def no_light_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     params = {} if args.model is None else {"weights": args.model}
     paths = [args.real / rec for rec in NO_LIGHT]
     if args.faery is not None:  # faery's scenes without a light (night_recording.py)
-        from night_recording import SCENES, sha256
+        from night_recording import SCENES, faery_file
 
-        for name, digest in SCENES.items():
-            if not (args.faery / name).is_file() or sha256(args.faery / name) != digest:
-                raise SystemExit(f"{args.faery / name}: not faery 0.7.1's {name}")
-            paths.append(args.faery / name)
+        paths += [faery_file(args.faery / name, name) for name in SCENES]
     for path in paths:
         rec = path.name
         if not path.is_file():

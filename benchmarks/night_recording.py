@@ -44,7 +44,6 @@ method's setting was chosen on these recordings: they are held out for every bun
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import re
 from pathlib import Path
@@ -54,9 +53,19 @@ from _common import add_model_option, report
 
 from edeflare import read_events
 from edeflare.eval.score import classify_events, score_recording
+from edeflare.io.sequence import file_sha256
 from edeflare.lights import Lights, LightSource, detect_light_source
 
-SHA256 = "8eca19cd8f0580ae939490484a023d858192a4c102b6649d8f5e19a62cb77ad3"
+FAERY_SHA256 = {
+    "evt3.raw": "8eca19cd8f0580ae939490484a023d858192a4c102b6649d8f5e19a62cb77ad3",
+    "evt2.raw": "e84afbecdc07d2910ae846a4ae0ee246f5b9c97a53816c637d4f85c023d7c234",
+    "dvs.es": "98f9ca09e1b77ccc02bbe130a2c295ca531a29eb4d3f597d9917ddce0f26d333",
+}
+"""faery 0.7.1's test files read here: the night recording, and its other real recordings,
+neither with a light (:data:`SCENES`)."""
+SCENES = ("evt2.raw", "dvs.es")
+"""Plants and a string before a Prophesee Gen3 (640x480, 96 ms, 521,252 events) and an
+object moving before a DVS (320x240, 1 s, 473,225 events; ``atis.es`` holds the same)."""
 HERE = Path(__file__).resolve().parent
 PANEL = HERE / "reference_window_lights.json"
 WINDOW_US = 100_000
@@ -144,12 +153,18 @@ def annotate(events: np.ndarray, size: tuple[int, int]) -> tuple[Lights, dict]:
     return lights, checks
 
 
-def sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+def faery_file(path: Path, name: str = "evt3.raw") -> Path:
+    """``path``, checked to be faery 0.7.1's test file ``name`` (by its sha256)."""
+    if not path.is_file():
+        raise SystemExit(f"{path}: no such file (see night_recording.py's docstring)")
+    if file_sha256(path) != FAERY_SHA256[name]:
+        raise SystemExit(f"{path}: not faery 0.7.1's {name} (sha256 differs)")
+    return path
+
+
+def _label(weights: str) -> str:
+    """A model row's name: a run's folder for a weights file, else the bundled name."""
+    return Path(weights).parent.name if weights.endswith(".safetensors") else weights
 
 
 def overlay_figure(events: np.ndarray, size: tuple[int, int], lights: Lights, path: Path) -> None:
@@ -182,30 +197,17 @@ def overlay_figure(events: np.ndarray, size: tuple[int, int], lights: Lights, pa
     save_image(path, grid(frames, ncols=2, captions=captions))
 
 
-SCENES = {
-    "evt2.raw": "e84afbecdc07d2910ae846a4ae0ee246f5b9c97a53816c637d4f85c023d7c234",
-    "dvs.es": "98f9ca09e1b77ccc02bbe130a2c295ca531a29eb4d3f597d9917ddce0f26d333",
-}
-"""faery's other real recordings, neither with a light: plants and a string before a
-Prophesee Gen3 (640x480, 96 ms, 521,252 events) and an object moving before a DVS
-(320x240, 1 s, 473,225 events; ``atis.es`` holds the same events)."""
-
-
 def scenes_kept(folder: Path, models: list[str]) -> list[dict]:
     """The share of each scene's events each method keeps (one windowing, as ``edeflare
     deflare`` prints it): what a de-flarer should leave alone (goal: >= 95 %)."""
     from edeflare import deflare
 
-    scenes = {}
-    for name, digest in SCENES.items():
-        if sha256(folder / name) != digest:
-            raise SystemExit(f"{folder / name}: not faery 0.7.1's {name} (sha256 differs)")
-        scenes[name] = read_events(folder / name)
+    scenes = {name: read_events(faery_file(folder / name, name)) for name in SCENES}
     rows = []
     methods = [(m, m, {}) for m in ("dv-fastdecay", "pfd-a")]
     methods += [(w, "model", {"weights": w}) for w in (*MODELS, *models)]
     for label, method, params in methods:
-        row = {"method": Path(label).parent.name if label.endswith(".safetensors") else label}
+        row = {"method": _label(label)}
         for name, (events, size) in scenes.items():
             out = deflare(events, size, method, rng=0, **params)
             row[name] = round(100 * out.size / events.size, 1)
@@ -231,10 +233,7 @@ def main() -> None:
         "--skip-night", action="store_true", help="with --scenes: score only the scenes"
     )
     args = parser.parse_args()
-    if not args.recording.is_file():
-        raise SystemExit(f"{args.recording}: no such file (see this script's docstring)")
-    if sha256(args.recording) != SHA256:
-        raise SystemExit(f"{args.recording}: not faery 0.7.1's evt3.raw (sha256 differs)")
+    faery_file(args.recording)
     events, size = read_events(args.recording)
     lights, checks = annotate(events, size)
     doc = {
@@ -266,9 +265,8 @@ def main() -> None:
             phases=args.phases,
         )
         for s in result.rows:
-            label = weights if s.method == "model" else s.method
             rows.append({
-                "method": Path(label).parent.name if label.endswith(".safetensors") else label,
+                "method": _label(weights) if s.method == "model" else s.method,
                 "halo removed": round(100 * s.halo_removed, 1),
                 "ghost removed": round(100 * s.ghost_removed, 1),
                 "flare removed": round(100 * s.flare_removed, 1),

@@ -168,25 +168,22 @@ def _gaps(t, x, y, width, window_us, last):  # pragma: no cover - compiled
 _last_times = threading.local()
 
 
-def _since_pixel(ev: np.ndarray, width: int, height: int, window_us: int) -> np.ndarray:
+def _since_pixel(
+    ev: np.ndarray, width: int, height: int, window_us: int, by_polarity: bool = False
+) -> np.ndarray:
     """Microseconds since the pixel's previous event in the window (``window_us`` for its
-    first); ``ev`` sorted by time, on the sensor."""
+    first); ``ev`` sorted by time, on the sensor. ``by_polarity``: the previous event of
+    the same polarity (a grid twice as wide, ON beside OFF)."""
+    x = ev["x"]
+    if by_polarity:
+        x, width = ev["x"].astype(np.int64) * 2 + (ev["p"] != 0), 2 * width
     n = width * height
-    last = getattr(_last_times, "frame", None)
+    key = "polarity" if by_polarity else "frame"
+    last = getattr(_last_times, key, None)
     if last is None or last.size != n:
-        last = _last_times.frame = np.full(n, -1, np.int64)
-    return _gaps(ev["t"], ev["x"], ev["y"], width, window_us, last)
-
-
-def _since_same(ev: np.ndarray, width: int, height: int, window_us: int) -> np.ndarray:
-    """Microseconds since the previous event of the same pixel and polarity in the window
-    (``window_us`` for the first): :func:`_gaps` on a grid twice as wide, ON beside OFF."""
-    n = 2 * width * height
-    last = getattr(_last_times, "polarity", None)
-    if last is None or last.size != n:
-        last = _last_times.polarity = np.full(n, -1, np.int64)
-    x2 = ev["x"].astype(np.int64) * 2 + (ev["p"] != 0)
-    return _gaps(ev["t"], x2, ev["y"], 2 * width, window_us, last)
+        last = np.full(n, -1, np.int64)
+        setattr(_last_times, key, last)
+    return _gaps(ev["t"], x, ev["y"], width, window_us, last)
 
 
 _SYNC_BLOCK, _SYNC_BIN_US = 64, 1_000
@@ -322,7 +319,8 @@ def window_features(
     if "since_pixel" in need:
         cols["since_pixel"] = np.log1p(_since_pixel(ev, width, height, window_us) / 1000.0)
     if "since_same" in need:
-        cols["since_same"] = np.log1p(_since_same(ev, width, height, window_us) / 1000.0)
+        same = _since_pixel(ev, width, height, window_us, by_polarity=True)
+        cols["since_same"] = np.log1p(same / 1000.0)
     if "sync_64" in need:
         cols["sync_64"] = _sync(ev, x, y, on, width)
     if "centre_distance" in need:
