@@ -121,9 +121,9 @@ def main(argv: list[str] | None = None) -> int:
             rows.setdefault("y", []).append(keep[take])
             rows.setdefault("light", []).append(own[take])
             rows.setdefault("group", []).append(np.full(take.size, group))
-            rows.setdefault("file", []).append(np.full(take.size, n, np.int32))
+            rows.setdefault("source", []).append(np.full(take.size, n, np.int32))
         print(f"{n + 1}/{len(files)} {path.parent.parent.name}/{path.name}", flush=True)
-    np.savez_compressed(args.out, **{k: np.concatenate(v) for k, v in rows.items()},
+    np.savez_compressed(str(args.out), **{k: np.concatenate(v) for k, v in rows.items()},
                         files=np.array([str(f) for f in files]))  # fmt: skip
     return 0
 
