@@ -17,12 +17,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from collect import unflatten
 
 from edeflare.eval.score import combined_score
 from edeflare.models.mask_kernels import keep_logit_threshold
+from edeflare.rules.terms import shift_knobs
 
-KNOBS = ("ghost_shift", "halo_shift", "streak_shift", "far_shift", "light_free_shift",
-         "scatter_shift")  # fmt: skip
+KNOBS = shift_knobs()
 HAND = {"ghost_shift": 3.0, "halo_shift": 3.0, "streak_shift": 8.0, "far_shift": 4.0,
         "light_free_shift": 4.0, "scatter_shift": 4.0}  # fmt: skip
 HAND_THRESHOLD = 0.4
@@ -31,15 +32,16 @@ THRESHOLDS = np.round(np.arange(0.05, 0.951, 0.05), 2)
 
 
 class Split:
-    """The stored rows: mean base logit and unit shifts over the two windowings."""
+    """The stored rows: their rule terms (both windowings), labels and groups."""
 
     def __init__(self, path: Path, parts: list[str] | None = None) -> None:
         z = np.load(path)
         # each row's part (its file's dataset part; the scene alone's rows too)
         part = np.array([Path(f).parent.parent.name for f in z["files"]])[z["source"]]
         rows = np.isin(part, parts) if parts else np.ones(part.size, bool)
-        self.base = ((z["base_0"][rows] + z["base_1"][rows]) / 2).astype(np.float32)
-        self.units = np.stack([(z[f"{k}_0"][rows] + z[f"{k}_1"][rows]) / 2 for k in KNOBS], 1)
+        self.terms = unflatten(
+            {k: z[k][..., rows] for k in z.files if k == "base" or k.startswith("units:")}
+        )
         self.y = z["y"][rows].astype(bool)
         self.light = z["light"][rows].astype(bool)
         self.group = z["group"][rows]
@@ -47,7 +49,7 @@ class Split:
         self.masks = [self.group == g for g in self.names]
 
     def logits(self, knobs: dict[str, float]) -> np.ndarray:
-        return self.base + self.units @ np.array([knobs[k] for k in KNOBS], np.float32)
+        return self.terms.logits(knobs)
 
     def table(self, logits: np.ndarray, threshold: float) -> list[dict[str, float]]:
         """Per group: flare removed, scene kept, light kept, combined."""

@@ -7,12 +7,14 @@ window phases) and the scenes without a light (score: the share of events kept).
 each item, the six shifts and the keep threshold are searched on the *other* items (mean
 score) and the choice is reported on the held-out one, beside the hand-set card's score.
 
-Like ``collect.py``, each recording's events get `night`'s base keep logit and each
-knob's unit shift, in windowings delayed by 0, 5, 10 and 15 ms; phase k of four is the
-mean of windowings k and k + 1, as ``score_recording(phases=4)`` runs the product
-(checked: the hand-set card reproduces ``flare_targets.py``'s rows).
+Each recording's rule terms (:meth:`edeflare.models.infer.ModelDeflarer.rule_terms`) in
+windowings delayed by 0, 5, 10 and 15 ms; phase k of four is the mean of windowings k
+and k + 1, as ``score_recording(phases=4)`` runs the product (checked: the hand-set card
+reproduces ``flare_targets.py``'s rows).
 
-    python real_loo.py --faery FAERY_TESTS_DATA --out real_loo.json --fits fit.json fit-sparse.json
+    python real_loo.py --faery FAERY_TESTS_DATA --out real_loo.json
+    python real_loo.py --faery FAERY_TESTS_DATA --out real_fits.json --fits-only \
+        --fits fit.json fit-sparse.json
 """
 
 from __future__ import annotations
@@ -29,15 +31,13 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE.parents[1] / "benchmarks"), str(HERE)]
 
-from collect import KNOBS, stream_arrays  # noqa: E402
-from fit import HAND, HAND_THRESHOLD  # noqa: E402
+from fit import HAND, HAND_THRESHOLD, KNOBS  # noqa: E402
 
 from edeflare.eval.score import classify_events, combined_score  # noqa: E402
 from edeflare.io import read_events  # noqa: E402
 from edeflare.lights import bundled_lights, load_lights  # noqa: E402
 from edeflare.models.infer import ModelDeflarer, bundled_weights  # noqa: E402
 from edeflare.models.mask_kernels import keep_logit_threshold  # noqa: E402
-from edeflare.models.weights import read_card  # noqa: E402
 
 DELAYS = (0, 5_000, 10_000, 15_000)
 SHIFTS = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
@@ -45,16 +45,12 @@ THRESHOLDS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
 
 
 class Item:
-    """One recording: per windowing the base logits and unit shifts; its regions."""
+    """One recording: its rule terms in four windowings; its regions."""
 
     def __init__(self, name: str, events: np.ndarray, size, lights=None) -> None:
-        w = bundled_weights("night")
-        d = ModelDeflarer(w, runtime="torch", batch_windows=1,
-                          **dict.fromkeys(read_card(w).rules, 0))  # fmt: skip
         self.name = name
-        arrays = [stream_arrays(d, events, size, delay) for delay in DELAYS]
-        self.base = [a["base"] for a in arrays]
-        self.units = [np.stack([a[k] for k in KNOBS], 1) for a in arrays]
+        d = ModelDeflarer(bundled_weights("night"), runtime="torch")
+        self.terms = d.rule_terms(events, size, DELAYS)
         self.regions = None
         if lights is not None:
             r = classify_events(events, lights, size)
@@ -66,10 +62,9 @@ class Item:
     ) -> np.ndarray:
         """Per keep threshold: the mean over the four phases of the combined
         score (or the share kept)."""
-        k = np.asarray(knobs, np.float32)
-        per_view = [b + u @ k for b, u in zip(self.base, self.units, strict=True)]
+        values = dict(zip(KNOBS, knobs, strict=True))
         n = len(DELAYS)
-        phases = [(per_view[p] + per_view[(p + 1) % n]) / 2 for p in range(n)]
+        phases = [self.terms.logits(values, views=(p, (p + 1) % n)) for p in range(n)]
         out = np.zeros(len(thresholds))
         for i, threshold in enumerate(thresholds):
             cut = keep_logit_threshold(threshold)
@@ -133,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         default=[],
         help="fit.py's JSON files: also score their cards on every item",
     )
+    ap.add_argument("--fits-only", action="store_true", help="score the fits' cards, no search")
     args = ap.parse_args(argv)
     items = load_items(args.real, args.faery)
     names = [it.name for it in items]
@@ -143,6 +139,10 @@ def main(argv: list[str] | None = None) -> int:
         fitted[path.stem] = {**best, "scores": {it.name: it.score(knobs, best["keep_threshold"])
                                                 for it in items}}  # fmt: skip
         print(path.stem, {n: round(v, 4) for n, v in fitted[path.stem]["scores"].items()})
+
+    if args.fits_only:
+        args.out.write_text(json.dumps({"items": names, "simulated": fitted}, indent=1))
+        return 0
 
     @functools.cache
     def table(knobs: tuple[float, ...]) -> np.ndarray:

@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from ..errors import EdeflareError
+from ..errors import EdeflareError, ParameterError
 from ..events import (
     SensorSize,
     check_events,
@@ -44,6 +44,7 @@ from ..lights.cells import covered_us
 from ..methods.base import Streamer
 from ..methods.windows import WindowStreamer
 from ..rules import RULES, RuleSet, WindowContext
+from ..rules.terms import RuleTerms, unit_shifts
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .event_features import window_features
@@ -477,6 +478,88 @@ class ModelDeflarer:
         >>> keep_logit_threshold(d.keep_threshold) < 0.0  # untrained: keeps everything
         True
         """
+        head = self.head_params
+        need = self.rules.needs_support or head is not None
+        out, supports, maps = self._network_logits(batch, sensor_size, need, cells)
+        if not self.rules.active and head is None:
+            return out
+        w, scale = self.window_us, self.model.scale
+        for k, ((start, events), v, support) in enumerate(zip(batch, out, supports, strict=True)):
+            # the lights' rates over the part of the window the stream covers
+            ctx = WindowContext(events, sensor_size, covered_us(events, start, w), support)
+            if head is not None:
+                features = window_features(ctx, v, head["features"], window_us=w)
+                if maps is not None:
+                    features = np.hstack([features, gather_context(maps[k], events, scale)])
+                v = out[k] = head_logits(head, features)
+            if self.rules.active:
+                self.rules.apply(v, ctx)
+        return out
+
+    def rule_terms(
+        self,
+        events: np.ndarray,
+        sensor_size: SensorSize,
+        delays_us: Sequence[int] | None = None,
+    ) -> RuleTerms:
+        """A stream's keep logits split into the network's and each rule knob's term
+        (:mod:`edeflare.rules.terms`), in windowings delayed by ``delays_us`` (default:
+        the model's two views, 0 and its phase shift).
+
+        ``terms.logits(knobs, views=(0, 1)) > keep_logit_threshold(t)`` is what this
+        model keeps with those knobs and keep threshold ``t`` (its own up to float
+        rounding): a search over the knobs runs the network once.
+
+        Examples
+        --------
+        >>> from edeflare.events import make_events
+        >>> d = ModelDeflarer(bundled_weights("night"))
+        >>> ev = make_events([10, 30, 50], [1, 2, 3], [1, 2, 3], [1, 0, 1])
+        >>> terms = d.rule_terms(ev, (16, 16))
+        >>> terms.delays_us, terms.base.shape, terms.units[("halo_shift",)]["halo_shift"].shape
+        ((0, 5000), (2, 3), (2, 3))
+        """
+        if self.head_params is not None:
+            raise ParameterError(
+                f"{self.weights}: rule terms need a model without a keep head (its head's "
+                "logits are not the network's plus the rules')"
+            )
+        size = check_sensor_size(sensor_size)
+        check_events(events, size)
+        w = self.window_us
+        if delays_us is None:
+            delays_us = (0, check_phase_shift(None, self.card, self.weights))
+        delays = tuple(int(d) for d in delays_us)
+        base = np.zeros((len(delays), events.size), np.float32)
+        units: dict[tuple[str, ...], dict[str, np.ndarray]] = {}
+        t = np.ascontiguousarray(events["t"]).astype(np.int64)
+        for v, delay in enumerate(delays):
+            i = 0
+            while i < events.size:  # the windows of TwoViewStreamer's view
+                start = (int(t[i]) + delay) // w * w - delay
+                k = int(np.searchsorted(t, start + w, side="left"))
+                part = events[i:k]
+                (logit,), (support,), _ = self._network_logits([(start, part)], size, True)
+                base[v, i:k] = logit
+                ctx = WindowContext(part, size, covered_us(part, start, w), support)
+                for on, per_knob in unit_shifts(self.rules, ctx).items():
+                    for name, unit in per_knob.items():
+                        if on not in units or name not in units[on]:
+                            units.setdefault(on, {})[name] = np.zeros_like(base)
+                        units[on][name][v, i:k] = unit
+                i = k
+        return RuleTerms(delays, base, units)
+
+    def _network_logits(
+        self,
+        batch: list[tuple[int, np.ndarray]],
+        sensor_size: SensorSize,
+        support: bool,
+        cells: list[np.ndarray] | None = None,
+    ) -> tuple[list[np.ndarray], list[np.ndarray | None], np.ndarray | None]:
+        """The network's per-event keep logits of the windows (no rule, no head), each
+        event's 5x5 support where asked (free with the refinement's counts), and a head's
+        context maps (None without one). ``cells`` receives each window's cells."""
         net = self.model
         if not isinstance(net, FlareMaskNet):
             raise EdeflareError("per-event keep logits need a mask model (a mask.* preset)")
@@ -496,32 +579,15 @@ class ModelDeflarer:
         logits = logits[:, : 2 * net.bins]
         if cells is not None:
             cells.extend(np.concatenate([feats, logits], 1))
-        # each event's support, for the light-free rule and the head: free with the
-        # refinement's counts
-        need = self.rules.needs_support or head is not None
-        supports = [np.empty(ev.size, np.int64) if need else None for _, ev in batch]
+        supports = [np.empty(ev.size, np.int64) if support else None for _, ev in batch]
         out = [
             event_keep_logits(
                 lg, events, start, w, scale, pixel_params=self.pixel_params,
-                sensor_size=sensor_size, support=support, records=r,
+                sensor_size=sensor_size, support=sup, records=r,
             )
-            for (start, events), lg, support, r in zip(
-                batch, logits, supports, records, strict=True
-            )
+            for (start, events), lg, sup, r in zip(batch, logits, supports, records, strict=True)
         ]  # fmt: skip
-        if not self.rules.active and head is None:
-            return out
-        for k, ((start, events), v, support) in enumerate(zip(batch, out, supports, strict=True)):
-            # the lights' rates over the part of the window the stream covers
-            ctx = WindowContext(events, sensor_size, covered_us(events, start, w), support)
-            if head is not None:
-                features = window_features(ctx, v, head["features"], window_us=w)
-                if maps is not None:
-                    features = np.hstack([features, gather_context(maps[k], events, scale)])
-                v = out[k] = head_logits(head, features)
-            if self.rules.active:
-                self.rules.apply(v, ctx)
-        return out
+        return out, supports, maps
 
     def _run_mask(
         self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
