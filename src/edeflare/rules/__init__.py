@@ -269,6 +269,11 @@ def reference_markdown() -> str:
         "fields (`rules`); a knob not given takes the card's value, and a card's rules are",
         "off unless it sets them. In a window the rules add their shifts in this order.",
         "",
+        "Each shift knob adds itself times evidence that does not depend on it, so",
+        "`ModelDeflarer.rule_terms(events, size)` splits a stream's keep logits into the",
+        "network's and each knob's term (`edeflare.rules.terms`): a search over the knobs on",
+        "annotated recordings then runs the network once.",
+        "",
     ]
     for rule in RULES.values():
         where = "windows with a light" if rule.windows == "lights" else "windows without a light"
