@@ -1,4 +1,4 @@
-"""What each rule knob adds to a stream's keep logits: the rules are linear in their shifts.
+"""What each rule knob adds to a stream's keep logits (the rules are linear in their shifts).
 
 A mask model's keep logit is its network's plus each active rule's shift
 (:meth:`~edeflare.rules.RuleSet.apply`). Every rule's shift is a sum of its shift
@@ -13,8 +13,8 @@ with :math:`\\ell_0` the network's logits (every rule off) and :math:`u_j` what 
 decide which events the evidence covers; they stay at the model's values.
 :class:`RuleTerms` holds both for one or more windowings of a stream
 (:meth:`edeflare.models.infer.ModelDeflarer.rule_terms`): a search over the knobs on
-annotated recordings (``benchmarks/flare_targets.py``'s leave-one-out) then runs no
-network.
+annotated recordings (as ``experiments/sim-card/real_loo.py``'s leave-one-out) then runs
+no network.
 
 Examples
 --------
