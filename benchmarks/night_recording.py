@@ -233,6 +233,9 @@ def main() -> None:
         "--skip-night", action="store_true", help="with --scenes: score only the scenes"
     )
     args = parser.parse_args()
+    if args.scenes is not None and args.skip_night:
+        report("night_recording_scenes", scenes_kept(args.scenes, args.model), ["method", *SCENES])
+        return
     faery_file(args.recording)
     events, size = read_events(args.recording)
     lights, checks = annotate(events, size)
@@ -250,9 +253,6 @@ def main() -> None:
     if args.figure:
         overlay_figure(events, size, lights, args.figure)
     if args.annotate_only:
-        return
-    if args.scenes is not None and args.skip_night:
-        report("night_recording_scenes", scenes_kept(args.scenes, args.model), ["method", *SCENES])
         return
     rows = []
     for i, weights in enumerate([*MODELS, *args.model]):

@@ -44,13 +44,17 @@ SHIFTS = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
 THRESHOLDS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
 
 
+@functools.cache
+def _night() -> ModelDeflarer:
+    return ModelDeflarer(bundled_weights("night"), runtime="torch")
+
+
 class Item:
     """One recording: its rule terms in four windowings; its regions."""
 
     def __init__(self, name: str, events: np.ndarray, size, lights=None) -> None:
         self.name = name
-        d = ModelDeflarer(bundled_weights("night"), runtime="torch")
-        self.terms = d.rule_terms(events, size, DELAYS)
+        self.terms = _night().rule_terms(events, size, DELAYS)
         self.regions = None
         if lights is not None:
             r = classify_events(events, lights, size)

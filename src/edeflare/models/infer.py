@@ -44,7 +44,7 @@ from ..lights.cells import covered_us
 from ..methods.base import Streamer
 from ..methods.windows import WindowStreamer
 from ..rules import RULES, RuleSet, WindowContext
-from ..rules.terms import RuleTerms, unit_shifts
+from ..rules.terms import RuleTerms, knob_sets, unit_shifts
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .event_features import window_features
@@ -531,7 +531,7 @@ class ModelDeflarer:
             delays_us = (0, check_phase_shift(None, self.card, self.weights))
         delays = tuple(int(d) for d in delays_us)
         base = np.zeros((len(delays), events.size), np.float32)
-        units: dict[tuple[str, ...], dict[str, np.ndarray]] = {}
+        units = {on: {name: np.zeros_like(base) for name in on} for on in knob_sets()}
         t = np.ascontiguousarray(events["t"]).astype(np.int64)
         for v, delay in enumerate(delays):
             i = 0
@@ -544,8 +544,6 @@ class ModelDeflarer:
                 ctx = WindowContext(part, size, covered_us(part, start, w), support)
                 for on, per_knob in unit_shifts(self.rules, ctx).items():
                     for name, unit in per_knob.items():
-                        if on not in units or name not in units[on]:
-                            units.setdefault(on, {})[name] = np.zeros_like(base)
                         units[on][name][v, i:k] = unit
                 i = k
         return RuleTerms(delays, base, units)

@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import ParameterError
 from . import RULES, Rule, RuleSet, WindowContext, knob_fields
 
-__all__ = ["RuleTerms", "shift_knobs", "unit_shifts"]
+__all__ = ["RuleTerms", "knob_sets", "shift_knobs", "unit_shifts"]
 
 
 def shift_knobs() -> tuple[str, ...]:
@@ -53,8 +53,29 @@ def shift_knobs() -> tuple[str, ...]:
     return tuple(name for name, (_, f) in fields if f.metadata["cli"].metavar == "LOGIT")
 
 
-def _shift_fields(rule: Rule) -> tuple[str, ...]:
-    return tuple(f.name for f in dataclasses.fields(rule.params) if f.name in shift_knobs())
+def _rule_shift_knobs() -> dict[str, tuple[str, ...]]:
+    """Each rule's shift knobs, in its order."""
+    shifts = set(shift_knobs())
+    return {
+        rule.name: tuple(f.name for f in dataclasses.fields(rule.params) if f.name in shifts)
+        for rule in RULES.values()
+    }
+
+
+def knob_sets() -> list[tuple[str, ...]]:
+    """Every set of one rule's shift knobs that can be on together (one term each).
+
+    Examples
+    --------
+    >>> knob_sets()[-3:]
+    [('light_free_shift',), ('scatter_shift',), ('light_free_shift', 'scatter_shift')]
+    """
+    return [
+        on
+        for own in _rule_shift_knobs().values()
+        for r in range(1, len(own) + 1)
+        for on in itertools.combinations(own, r)
+    ]
 
 
 def _shift(rules: RuleSet, rule: Rule, ctx: WindowContext, knobs: dict[str, float]) -> np.ndarray:
@@ -74,21 +95,21 @@ def unit_shifts(rules: RuleSet, ctx: WindowContext) -> dict[tuple[str, ...], dic
     """
     n = ctx.events.size
     kind = "lights" if ctx.has_lights else "light-free"
+    own_of, sets = _rule_shift_knobs(), knob_sets()
     out: dict[tuple[str, ...], dict[str, np.ndarray]] = {}
     for rule in RULES.values():
-        own = _shift_fields(rule)
-        for r in range(1, len(own) + 1):
-            for on in itertools.combinations(own, r):
-                units = {name: np.zeros(n, np.float32) for name in on}
-                if rule.windows == kind:
-                    ones = {k: float(k in on) for k in own}
-                    at_one = _shift(rules, rule, ctx, ones)
-                    for name in on:  # alone, linear through 0: the shift at 1 is the unit
-                        units[name][:] = (
-                            at_one if len(on) == 1
-                            else _shift(rules, rule, ctx, {**ones, name: 2.0}) - at_one
-                        )  # fmt: skip
-                out[on] = units
+        own = own_of[rule.name]
+        for on in (on for on in sets if on[0] in own):
+            units = {name: np.zeros(n, np.float32) for name in on}
+            if rule.windows == kind:
+                ones = {k: float(k in on) for k in own}
+                at_one = _shift(rules, rule, ctx, ones)
+                for name in on:  # alone, linear through 0: the shift at 1 is the unit
+                    units[name][:] = (
+                        at_one if len(on) == 1
+                        else _shift(rules, rule, ctx, {**ones, name: 2.0}) - at_one
+                    )  # fmt: skip
+            out[on] = units
     return out
 
 
@@ -122,11 +143,12 @@ class RuleTerms:
                 f"unknown shift knob(s) {sorted(unknown)}; known: {', '.join(known)}"
             )
         rows = range(len(self.delays_us)) if views is None else list(views)
+        # each rule's knobs that are on, in the rules' order (as they apply)
+        sets = [tuple(k for k in own if knobs.get(k)) for own in _rule_shift_knobs().values()]
         total = np.zeros(self.base.shape[1], np.float32)
         for v in rows:
             lg = self.base[v].astype(np.float32, copy=True)
-            for rule in RULES.values():  # in the rules' order, as they apply
-                on = tuple(k for k in _shift_fields(rule) if knobs.get(k))
+            for on in sets:
                 for name in on:
                     lg += np.float32(knobs[name]) * self.units[on][name][v]
             total += lg
