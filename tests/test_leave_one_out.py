@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from edeflare.eval.leave_one_out import leave_one_out
+from edeflare.eval.leave_one_out import leave_one_out, leave_one_out_search
 
 
 def test_each_recording_is_scored_with_the_setting_the_others_chose():
@@ -46,3 +46,60 @@ def test_fewer_than_two_recordings_or_no_setting_is_refused():
         leave_one_out(lambda r, s: 1.0, ["a"], [1])
     with pytest.raises(ValueError, match="no settings"):
         leave_one_out(lambda r, s: 1.0, ["a", "b"], [])
+
+
+def test_search_moves_every_knob_on_the_others_and_asks_each_setting_once():
+    # score(rec, x, y): a peak at each recording's own (x, y)
+    peaks = {"gen3": (2, 0), "davis": (2, 1), "window": (1, 1)}
+    asked = []
+
+    def scores(s):
+        asked.append((s["x"], s["y"]))
+        return [1 - abs(s["x"] - px) / 4 - abs(s["y"] - py) / 8 for px, py in peaks.values()]
+
+    rows = leave_one_out_search(scores, list(peaks), {"x": [0, 1, 2], "y": [0, 1]})
+    assert len(asked) == len(set(asked)) <= 6
+    by = {r.recording: r for r in rows}
+    # gen3 out: davis + window, x=1 and x=2 tie on x (0.75 + 1.0 / 2 either way), y=1 best
+    # for both: ascent from (0, 0): x -> 1 (first of the tie), then y -> 1
+    assert by["gen3"].chosen == {"x": 1, "y": 1}
+    assert by["gen3"].held_out == pytest.approx(1 - 1 / 4 - 1 / 8)
+    assert by["gen3"].in_sample == 1.0 and by["gen3"].in_sample_setting == {"x": 2, "y": 0}
+    # davis out: gen3 (2, 0) + window (1, 1): x=1 and x=2 tie again, y ties -> stays 0
+    assert by["davis"].chosen == {"x": 1, "y": 0}
+    assert by["davis"].held_out == pytest.approx(1 - 1 / 4 - 1 / 8)
+    # window out: gen3 + davis both at x=2, y tie -> 0
+    assert by["window"].chosen == {"x": 2, "y": 0}
+    assert by["window"].optimism == pytest.approx(1 - (1 - 1 / 4 - 1 / 8))
+
+
+def test_search_takes_the_best_start_and_a_start_may_lie_off_the_grid():
+    # one knob with two local peaks: ascent from 0 stops at 1 (2 is worse), from 4 reaches 4
+    curve = {0: 0.1, 1: 0.5, 2: 0.2, 3: 0.6, 4: 0.9, 0.5: 0.0}
+    table = {"a": curve, "b": curve}
+
+    def scores(s):
+        return [table["a"][s["k"]], table["b"][s["k"]]]
+
+    one = leave_one_out_search(scores, ["a", "b"], {"k": [0, 1, 2, 3, 4]}, [{"k": 0}])
+    assert [r.chosen for r in one] == [{"k": 4}] * 2  # one move to the best grid value
+    off = leave_one_out_search(scores, ["a", "b"], {"k": [0, 4]}, [{"k": 0.5}, {"k": 0}])
+    assert off[0].chosen == {"k": 4} and off[0].held_out == 0.9
+
+
+def test_search_leaves_unscored_recordings_out_and_refuses_bad_arguments():
+    def scores(s):
+        return [math.nan, 0.2 + s["k"], 0.9 - s["k"]]
+
+    rows = leave_one_out_search(scores, ["a", "b", "c"], {"k": [0.0, 0.5]})
+    assert rows[0].chosen == {"k": 0.0}  # b + c: 1.1 at either, first kept
+    assert math.isnan(rows[0].held_out)
+    assert rows[1].chosen == {"k": 0.0} and rows[2].chosen == {"k": 0.5}  # a's NaN skipped
+    with pytest.raises(ValueError, match="at least two recordings"):
+        leave_one_out_search(scores, ["a"], {"k": [0]})
+    with pytest.raises(ValueError, match="at least one grid value"):
+        leave_one_out_search(scores, ["a", "b"], {"k": []})
+    with pytest.raises(ValueError, match="not on the grid: \\['z'\\]"):
+        leave_one_out_search(scores, ["a", "b"], {"k": [0]}, [{"z": 1}])
+    with pytest.raises(ValueError, match="gave 3 values for 2 recordings"):
+        leave_one_out_search(scores, ["a", "b"], {"k": [0]})

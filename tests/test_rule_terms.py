@@ -27,9 +27,9 @@ SETTINGS = [
 ]  # fmt: skip
 
 
-def _kept(events, size, **knobs):
-    """What `night` keeps with these shifts (the card's counts and threshold)."""
-    d = ModelDeflarer(bundled_weights("night"), runtime="torch",
+def _kept(events, size, model="night", **knobs):
+    """What a model keeps with these shifts (the card's counts and threshold)."""
+    d = ModelDeflarer(bundled_weights(model), runtime="torch",
                       **{k: knobs.get(k, 0.0) for k in shift_knobs()})  # fmt: skip
     out = d(events, size)
     return np.isin(event_keys(events, size), event_keys(out, size))
@@ -107,7 +107,15 @@ def test_the_logits_are_the_network_plus_each_knob_times_its_unit():
         terms.logits({"glow_shift": 1.0})
 
 
-def test_a_model_with_a_keep_head_has_no_rule_terms():
+def test_a_model_with_a_keep_head_splits_the_same_way():
+    """A keep head's logits take the rules' shifts on top: its terms are exact too."""
+    events, size = _scene()
     d = ModelDeflarer(bundled_weights("learned"), runtime="torch")
-    with pytest.raises(ParameterError, match="rule terms need a model without a keep head"):
-        d.rule_terms(make_events([0], [1], [1], [1]), (16, 16))
+    terms = d.rule_terms(events, size)
+    cut = keep_logit_threshold(d.keep_threshold)
+    np.testing.assert_array_equal(terms.logits({}) > cut, _kept(events, size, "learned"))
+    knobs = SETTINGS[2]
+    mine = terms.logits(knobs) > cut
+    theirs = _kept(events, size, "learned", **knobs)
+    np.testing.assert_array_equal(mine, theirs)
+    assert 0 < theirs.sum() < (terms.logits({}) > cut).sum()  # the shifts remove some

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..errors import EdeflareError, ParameterError
+from ..errors import EdeflareError
 from ..events import (
     SensorSize,
     check_events,
@@ -478,23 +478,37 @@ class ModelDeflarer:
         >>> keep_logit_threshold(d.keep_threshold) < 0.0  # untrained: keeps everything
         True
         """
+        return self._keep_logits(batch, sensor_size, cells)[0]
+
+    def _keep_logits(
+        self,
+        batch: list[tuple[int, np.ndarray]],
+        sensor_size: SensorSize,
+        cells: list[np.ndarray] | None = None,
+        *,
+        rules: bool = True,
+        support: bool = False,
+    ) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
+        """:meth:`window_logits`' logits (the rules' shifts added only where ``rules``),
+        and each window's 5x5 support where the rules, a head or ``support`` ask for it."""
         head = self.head_params
-        need = self.rules.needs_support or head is not None
+        apply = rules and self.rules.active
+        need = support or (apply and self.rules.needs_support) or head is not None
         out, supports, maps = self._network_logits(batch, sensor_size, need, cells)
-        if not self.rules.active and head is None:
-            return out
+        if not apply and head is None:
+            return out, supports
         w, scale = self.window_us, self.model.scale
-        for k, ((start, events), v, support) in enumerate(zip(batch, out, supports, strict=True)):
+        for k, ((start, events), v, sup) in enumerate(zip(batch, out, supports, strict=True)):
             # the lights' rates over the part of the window the stream covers
-            ctx = WindowContext(events, sensor_size, covered_us(events, start, w), support)
+            ctx = WindowContext(events, sensor_size, covered_us(events, start, w), sup)
             if head is not None:
                 features = window_features(ctx, v, head["features"], window_us=w)
                 if maps is not None:
                     features = np.hstack([features, gather_context(maps[k], events, scale)])
                 v = out[k] = head_logits(head, features)
-            if self.rules.active:
+            if apply:
                 self.rules.apply(v, ctx)
-        return out
+        return out, supports
 
     def rule_terms(
         self,
@@ -502,9 +516,10 @@ class ModelDeflarer:
         sensor_size: SensorSize,
         delays_us: Sequence[int] | None = None,
     ) -> RuleTerms:
-        """A stream's keep logits split into the network's and each rule knob's term
-        (:mod:`edeflare.rules.terms`), in windowings delayed by ``delays_us`` (default:
-        the model's two views, 0 and its phase shift).
+        """A stream's keep logits split into the model's with every rule off (its
+        network's, or its keep head's) and each rule knob's term
+        (:mod:`edeflare.rules.terms`), in windowings delayed by ``delays_us`` (default: the
+        model's two views, 0 and its phase shift).
 
         ``terms.logits(knobs, views=(0, 1)) > keep_logit_threshold(t)`` is what this
         model keeps with those knobs and keep threshold ``t`` (its own up to float
@@ -519,11 +534,6 @@ class ModelDeflarer:
         >>> terms.delays_us, terms.base.shape, terms.units[("halo_shift",)]["halo_shift"].shape
         ((0, 5000), (2, 3), (2, 3))
         """
-        if self.head_params is not None:
-            raise ParameterError(
-                f"{self.weights}: rule terms need a model without a keep head (its head's "
-                "logits are not the network's plus the rules')"
-            )
         size = check_sensor_size(sensor_size)
         check_events(events, size)
         w = self.window_us
@@ -539,7 +549,9 @@ class ModelDeflarer:
                 start = (int(t[i]) + delay) // w * w - delay
                 k = int(np.searchsorted(t, start + w, side="left"))
                 part = events[i:k]
-                (logit,), (support,), _ = self._network_logits([(start, part)], size, True)
+                (logit,), (support,) = self._keep_logits(
+                    [(start, part)], size, rules=False, support=True
+                )
                 base[v, i:k] = logit
                 ctx = WindowContext(part, size, covered_us(part, start, w), support)
                 for on, per_knob in unit_shifts(self.rules, ctx).items():

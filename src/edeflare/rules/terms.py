@@ -1,6 +1,6 @@
 """What each rule knob adds to a stream's keep logits (the rules are linear in their shifts).
 
-A mask model's keep logit is its network's plus each active rule's shift
+A mask model's keep logit is its network's (or its keep head's) plus each active rule's shift
 (:meth:`~edeflare.rules.RuleSet.apply`). Every rule's shift is a sum of its shift
 knobs (``halo_shift``, ``scatter_shift``, ...), each times evidence that does not depend
 on the knob (only on which of the rule's knobs are on), so one pass over a stream gives
@@ -8,9 +8,9 @@ the logits at any values of them:
 
 .. math:: \\ell(k) = \\ell_0 + \\sum_j k_j u_j
 
-with :math:`\\ell_0` the network's logits (every rule off) and :math:`u_j` what knob
-:math:`j` adds at 1. The count knobs (``light_free_support``, ``light_free_crowding``)
-decide which events the evidence covers; they stay at the model's values.
+with :math:`\\ell_0` the model's logits with every rule off (its network's or its head's)
+and :math:`u_j` what knob :math:`j` adds at 1. The count knobs (``light_free_support``,
+``light_free_crowding``) decide which events the evidence covers; they stay at the model's values.
 :class:`RuleTerms` holds both for one or more windowings of a stream
 (:meth:`edeflare.models.infer.ModelDeflarer.rule_terms`): a search over the knobs on
 annotated recordings (as ``experiments/sim-card/real_loo.py``'s leave-one-out) then runs
@@ -115,14 +115,15 @@ def unit_shifts(rules: RuleSet, ctx: WindowContext) -> dict[tuple[str, ...], dic
 
 @dataclasses.dataclass(frozen=True)
 class RuleTerms:
-    """A stream's keep logits as the network's plus each shift knob's term.
+    """A stream's keep logits as the model's with every rule off plus each shift knob's term.
 
     Parameters
     ----------
     delays_us : tuple of int
         The windowings: windows start at multiples of the model's window minus each delay.
     base : numpy.ndarray
-        ``(windowings, events)``: the network's keep logits, every rule off.
+        ``(windowings, events)``: the keep logits with every rule off (the network's,
+        or a keep head's).
     units : mapping
         For each set of one rule's shift knobs that are on (a tuple of names, in the
         rule's order): knob -> ``(windowings, events)``, what it adds at value 1 then.

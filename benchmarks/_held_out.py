@@ -1,0 +1,87 @@
+"""A real recording's scores at any rule knobs and keep threshold, without rerunning a model.
+
+:meth:`edeflare.models.infer.ModelDeflarer.rule_terms` splits a mask model's keep logits
+into its own (every rule off) and each rule shift's term, in the windowings of every
+window phase ``score_recording(phases=...)`` runs (the recording delayed by ``k * window
+/ phases``, each phase the mean of the model's two views). :class:`TermsRecording` then
+scores any knobs and threshold from them, as the product would (checked:
+``tests/test_held_out_terms.py`` and the card's row of ``flare_targets.py``), so that a
+leave-one-out search over every knob (``flare_targets.py``) runs the network once per
+recording.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from edeflare.eval.score import classify_events, combined_score
+from edeflare.lights import Lights
+from edeflare.models.infer import ModelDeflarer
+from edeflare.models.mask_kernels import keep_logit_threshold
+from edeflare.models.two_view import check_phase_shift
+
+TERMS = ("flare removed", "light kept", "scene kept", "combined")
+
+
+class TermsRecording:
+    """One recording's rule terms at every window phase, and its regions where annotated.
+
+    Parameters
+    ----------
+    name : str
+    deflarer : ModelDeflarer
+        The model (torch runtime).
+    events, sensor_size
+        The recording.
+    lights : Lights, optional
+        Its annotation; without one the score is the share of events kept.
+    phases : int
+        As ``score_recording``'s.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        deflarer: ModelDeflarer,
+        events: np.ndarray,
+        sensor_size: tuple[int, int],
+        lights: Lights | None = None,
+        phases: int = 4,
+    ) -> None:
+        w = deflarer.window_us
+        shift = check_phase_shift(None, deflarer.card, deflarer.weights)
+        views = [(k * w // phases % w, (k * w // phases + shift) % w) for k in range(phases)]
+        delays = sorted({d for pair in views for d in pair})
+        self.name, self.lit = name, lights is not None
+        self.views = [(delays.index(a), delays.index(b)) for a, b in views]
+        self.terms = deflarer.rule_terms(events, sensor_size, delays)
+        self.regions = None
+        if lights is not None:
+            r = classify_events(events, lights, sensor_size)
+            back = r.background if lights.score_background else None
+            self.regions = (r.flare, r.light, back)
+
+    def measure(self, knobs: Mapping[str, float], thresholds: Sequence[float]) -> np.ndarray:
+        """``(thresholds, 4)``: flare removed, light kept, scene kept and the combined
+        score, each the mean over the phases (NaN where not scored); without an
+        annotation the share kept stands in the combined column."""
+        phases = [self.terms.logits(knobs, views=v) for v in self.views]
+        out = np.full((len(thresholds), len(TERMS)), math.nan)
+        for i, threshold in enumerate(thresholds):
+            cut = keep_logit_threshold(threshold)
+            rows = []
+            for logits in phases:
+                kept = logits > cut
+                if self.regions is None:
+                    rows.append((math.nan, math.nan, math.nan, kept.mean()))
+                    continue
+                flare, light, back = self.regions
+                removed = 1 - kept[flare].mean() if flare.any() else math.nan
+                lit = kept[light].mean() if light.any() else math.nan
+                scene = kept[back].mean() if back is not None and back.any() else math.nan
+                rows.append((removed, lit, scene, combined_score(removed, lit, scene)))
+            out[i] = np.mean(rows, axis=0)
+        return out
