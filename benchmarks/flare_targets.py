@@ -73,7 +73,7 @@ from edeflare.events import event_keys
 from edeflare.io import read_events
 from edeflare.io.dsec import read_dsec
 from edeflare.io.sequence import list_sequences
-from edeflare.lights import bundled_lights, load_lights
+from edeflare.lights import Lights, bundled_lights, load_lights
 from edeflare.methods import Method, Streamer, create_method, deflare
 from edeflare.models.infer import ModelDeflarer, resolve_weights
 from edeflare.rules import knob_fields
@@ -256,8 +256,10 @@ def _loo_items(args: argparse.Namespace, deflarer: ModelDeflarer) -> list[TermsR
     items = []
     for rec, path, lights in annotated(args):
         r = read_events(path)
+        if not isinstance(lights, Lights):  # a bundled annotation's path
+            lights = load_lights(lights, r.sensor_size)
         items.append(TermsRecording(rec.split(".")[0], deflarer, r.events, r.sensor_size,
-                                    load_lights(lights, r.sensor_size), PHASES))  # fmt: skip
+                                    lights, PHASES))  # fmt: skip
     if PICTURE.is_file():
         window = reference_window(4)
         items.append(TermsRecording("reference_window", deflarer, window, SENSOR,
