@@ -28,6 +28,7 @@ from ..sim.pair import PAIR_VARIANTS, WEIGHTS, StageTimer, simulate_pair
 from ..sim.render import flare7k_names
 from ..sim.script import FlareScript, ScriptConfig, draw_script
 from ..sim.sensing import SensingConfig, sparse_sensing
+from ..sim.surround import SurroundConfig
 from .kinds import STAGES, GenerationError, KindSequence, register_kind
 from .sources import cached_source, check_index
 
@@ -38,6 +39,8 @@ __all__ = ["FlareConfig", "SequenceInputs", "draw_inputs", "flare_sequence"]
 
 SENSING_STREAM = 7
 """The sparse-sensing stage draws from ``SeedSequence((seed, i, 7))``."""
+SURROUND_STREAM = 8
+"""The lit surroundings draw from ``SeedSequence((seed, i, 8))``."""
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,9 @@ class FlareConfig:
         The sparse-sensing stage (:mod:`edeflare.sim.sensing`, off unless
         ``enabled``): scattered light sensed as scattered events, the
         keep-only target ``gt`` and the simulator's own as ``gt_full``.
+    surround : SurroundConfig
+        How often the light lights the scene around it, flickering with it
+        (:mod:`edeflare.sim.surround`; forward model only, off unless ``probability``).
 
     Examples
     --------
@@ -89,6 +95,7 @@ class FlareConfig:
     flare7k: str | None = None
     script: ScriptConfig = field(default_factory=ScriptConfig)
     sensing: SensingConfig = field(default_factory=SensingConfig)
+    surround: SurroundConfig = field(default_factory=SurroundConfig)
 
     def __post_init__(self) -> None:
         if self.variant not in PAIR_VARIANTS:
@@ -124,23 +131,34 @@ class FlareConfig:
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (:meth:`from_dict` round-trips it).
 
-        ``sensing`` is left out while it is off, so recipes keep the dicts and
-        digests they had before the stage existed.
+        ``sensing`` and ``surround`` are left out while off, so recipes keep the dicts
+        and digests they had before the stages existed.
         """
-        d: dict[str, Any] = {
-            f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "sensing"
-        }
+        optional = ("sensing", "surround")
+        fields = [f.name for f in dataclasses.fields(self) if f.name not in optional]
+        d: dict[str, Any] = {name: getattr(self, name) for name in fields}
         d["script"] = dataclasses.asdict(self.script)
         if self.sensing.enabled:
             d["sensing"] = self.sensing.to_dict()
+        if self.surround.enabled:
+            d["surround"] = self.surround.to_dict()
         return json.loads(json.dumps(d))
 
 
-_NESTED: dict[str, type] = {"script": ScriptConfig, "sensing": SensingConfig}
+_NESTED: dict[str, type] = {
+    "script": ScriptConfig,
+    "sensing": SensingConfig,
+    "surround": SurroundConfig,
+}
 
 
 def _check_recipe(recipe: Recipe) -> None:
     """What a flare config asks of the rest of the recipe."""
+    if recipe.config.surround.enabled and recipe.config.variant != "forward":
+        raise ParameterError(
+            "surround (a lamp's lit, flickering surroundings) needs variant='forward': "
+            "the scene's video is lit"
+        )
     if recipe.config.variant == "forward" and recipe.background != "synthetic":
         raise ParameterError(
             "variant='forward' simulates I_bg + I_f and needs the background as a video: "
@@ -209,6 +227,9 @@ def draw_inputs(
     script = draw_script(config, flare7k_names=names, rng=np.random.default_rng(s_script))
     if script.duration_us != duration:  # ScriptConfig rounds ms to µs
         script = dataclasses.replace(script, duration_us=duration)
+    if recipe.config.surround.enabled:  # its own stream: the other draws stay as they were
+        rng = np.random.default_rng((recipe.seed, index, SURROUND_STREAM))
+        script = dataclasses.replace(script, surround=recipe.config.surround.draw(script, rng))
     src = source or cached_source(recipe)
     background = src.draw(duration, size, script.sensor, rng=np.random.default_rng(s_bg))
     return SequenceInputs(index, script, background, s_comp, s_fwd)

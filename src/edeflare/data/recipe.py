@@ -41,6 +41,7 @@ from ..sim.compose import AccumulationParams
 from ..sim.pair import WEIGHTS
 from ..sim.script import ScriptConfig
 from ..sim.sensing import SensingConfig
+from ..sim.surround import SurroundConfig
 from .eflare import FlareConfig
 from .kinds import DatasetKind, GenerationError, get_kind, list_kinds
 from .sources import make_background_source
@@ -789,6 +790,40 @@ _FAST_PART = dataclasses.replace(
 )
 _TRAIN_PARTS = (*_MIX_PARTS, *_DAY_PARTS, ("fast-640", _FAST_PART))
 
+# eflare-lit: lamps that light the scene around them (edeflare.sim.surround), the forward
+# model's dense flare over night streets at 346x260 and 640x480, every sequence's lamp lighting
+# its surroundings (its illuminance at its foot 0.5-20 times the ambient, its distance from
+# them 1-3 light radii: the author's ranges, fitted to no recording); where the lamp flickers
+# (70 % of scripts, 100-140 Hz), its lit texture fires at each half period as flare. The
+# scene alone stored. Seeds no other recipe uses.
+_LIT = dataclasses.replace(_FORWARD, surround=SurroundConfig(probability=1.0))
+_LIT_PARTS = (
+    (
+        "lit-346",
+        Recipe(
+            name="eflare-lit.lit-346",
+            sequences=24,
+            test_sequences=3,
+            sensor_size=(346, 260),
+            seed=216,
+            scene=_NIGHT_SCENE,
+            config=_LIT,
+        ),
+    ),
+    (
+        "lit-640",
+        Recipe(
+            name="eflare-lit.lit-640",
+            sequences=16,
+            test_sequences=2,
+            sensor_size=(640, 480),
+            seed=217,
+            scene=_NIGHT_SCENE,
+            config=_LIT,
+        ),
+    ),
+)
+
 RECIPES: Registry[Recipe | Mix] = Registry("recipe")
 for _recipe in (
     Recipe(name="eflare-2.7k"),
@@ -843,6 +878,7 @@ for _recipe in (
     Mix("eflare-gaps", _GAPS_PARTS),
     Mix("eflare-day", _DAY_PARTS),
     Mix("eflare-train", _TRAIN_PARTS),
+    Mix("eflare-lit", _LIT_PARTS),
 ):
     RECIPES.register(_recipe.name, _recipe)
 """Named recipes: the paper's E-Flare-2.7K (synthetic backgrounds unless files are given),

@@ -372,12 +372,23 @@ class SimulatedPair:
 
 
 def _script_frames(
-    renderer: Renderer, background_video: Callable[[float], np.ndarray] | None
+    renderer: Renderer,
+    background_video: Callable[[float], np.ndarray] | None,
+    size: SensorSize,
 ) -> Iterator[tuple[int, Frames]]:
+    """Each frame's videos; with a background, the scene as observed (``"lit"``: under the
+    light's flickering illumination where it lights its surroundings) and flare-free
+    (``"steady"``)."""
+    script = renderer.script
     for t_us, flare, light in renderer:
         frames = {"flare": flare, "light": light}
         if background_video is not None:
-            frames["background"] = background_video(t_us).astype(np.float64)
+            bg = background_video(t_us).astype(np.float64)
+            frames["background"] = frames["lit"] = frames["steady"] = bg
+            if script.surround is not None:
+                frames["lit"] = bg * script.surround.illumination(script, t_us, size)
+                steady = script.surround.illumination(script, t_us, size, steady=True)
+                frames["steady"] = bg * steady
         yield t_us, frames
 
 
@@ -448,6 +459,10 @@ def simulate_pair(
             "variant='forward' simulates I_bg + I_f and needs the background as a video "
             "(a synthetic background)"
         )
+    if script.surround is not None and not forward:
+        raise SimError(
+            "a script with lit surroundings needs variant='forward' (the scene's video is lit)"
+        )
     timer = timer or StageTimer(("render", "simulate", "compose"))
     duration = script.duration_us
     with timer("render"):
@@ -461,11 +476,11 @@ def simulate_pair(
         seq_ob, seq_gt = forward_seed.spawn(2)
         rec_ob = EventRecorder(
             camera_simulator(script.sensor, size, rng=np.random.default_rng(seq_ob)),
-            lambda f: f["background"] + f["flare"],
+            lambda f: f["lit"] + f["flare"],
         )
         rec_gt = EventRecorder(
             camera_simulator(script.sensor, size, rng=np.random.default_rng(seq_gt)),
-            lambda f: f["background"] + f["light"],
+            lambda f: f["steady"] + f["light"],
         )
         observers += [rec_ob, rec_gt]
     bg = background.events
@@ -473,7 +488,9 @@ def simulate_pair(
     flare_flare, light_light = StreamSampler(rec_f, "flare"), StreamSampler(rec_l, "light")
     observers += [bg_flare, bg_light, flare_flare, light_light]
     run_frames(
-        _script_frames(renderer, background.video if forward else None), observers, timer=timer
+        _script_frames(renderer, background.video if forward else None, size),
+        observers,
+        timer=timer,
     )
 
     with timer("compose"):

@@ -42,6 +42,7 @@ from ._validation import SimError, check_choice, check_range, dataclass_from_dic
 from .dvs import DVS346_K, IdealParams, VoltmeterParams
 from .flare import GhostSpec, GlareSpec
 from .optics import PSFConfig
+from .surround import LitSurround, surround_from_dict
 
 __all__ = [
     "WAVEFORMS",
@@ -203,6 +204,8 @@ class FlareScript:
     sensor: SensorSpec = field(default_factory=SensorSpec)
     flare7k: Flare7KChoice | None = None
     gt_lens: str = "ideal"
+    surround: LitSurround | None = None
+    """The scene around the light, lit by it (:mod:`edeflare.sim.surround`; forward model)."""
 
     def __post_init__(self) -> None:
         if isinstance(self.duration_us, bool) or not isinstance(
@@ -227,6 +230,8 @@ class FlareScript:
                 raise SimError(f"{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
         if not all(isinstance(g, GhostSpec) for g in self.ghosts):
             raise SimError("ghosts must be GhostSpec instances")
+        if self.surround is not None and not isinstance(self.surround, LitSurround):
+            raise SimError(f"surround must be a LitSurround, got {self.surround!r}")
 
     def frame_times_us(self) -> np.ndarray:
         """Frame timestamps: ``round(i * 1e6 / fps)`` for every frame up to the duration.
@@ -279,6 +284,8 @@ class FlareScript:
             "flare7k": None if self.flare7k is None else _plain(self.flare7k),
             "gt_lens": self.gt_lens,
         }
+        if self.surround is not None:  # left out when absent: older scripts read the same
+            d["surround"] = self.surround.to_dict()
         return d
 
     @classmethod
@@ -307,6 +314,8 @@ class FlareScript:
             )
         if "sensor" in d:
             d["sensor"] = sensor_spec_from_dict(d["sensor"], what="script 'sensor'")
+        if d.get("surround") is not None:
+            d["surround"] = surround_from_dict(d["surround"])
         return dataclass_from_dict(cls, d, what="FlareScript")
 
     def to_json(self) -> str:
