@@ -794,9 +794,15 @@ _TRAIN_PARTS = (*_MIX_PARTS, *_DAY_PARTS, ("fast-640", _FAST_PART))
 # model's dense flare over night streets at 346x260 and 640x480, every sequence's lamp lighting
 # its surroundings (its illuminance at its foot 0.5-20 times the ambient, its distance from
 # them 1-3 light radii: the author's ranges, fitted to no recording); where the lamp flickers
-# (70 % of scripts, 100-140 Hz), its lit texture fires at each half period as flare. The
-# scene alone stored. Seeds no other recipe uses.
-_LIT = dataclasses.replace(_FORWARD, surround=SurroundConfig(probability=1.0))
+# (70 % of scripts, 100-140 Hz), its lit texture fires at each half period as flare. Sources
+# 2.5-250 times the street (eflare-mix's dense parts: up to 8,000), as a stronger source's
+# own flare covers the frame and hides its lit surroundings (seen in the first sequences
+# drawn). The scene alone stored. Seeds no other recipe uses.
+_LIT = dataclasses.replace(
+    _FORWARD,
+    script=dataclasses.replace(_DENSE_SCRIPT, exposure=(2.5, 250.0)),
+    surround=SurroundConfig(probability=1.0),
+)
 _LIT_PARTS = (
     (
         "lit-346",
