@@ -917,7 +917,10 @@ and 9), ``dense-day-640`` and ``dense-day-1280`` (the forward model's strong sou
 and 7), ``drive-640`` and ``drive-1280`` (the street seen from a car driving forward, under
 strong sources, 14, and weak lights, 8), the scene alone stored in each; and the
 :class:`Mix` ``eflare-train``, all of those parts of ``eflare-mix`` and ``eflare-day`` and
-``fast-640`` (large, fast lights over night streets, 18), for a de-flarer with a context."""
+``fast-640`` (large, fast lights over night streets, 18), for a de-flarer with a context;
+and the :class:`Mix` ``eflare-lit``, lamps that light the scene around them, flickering
+(:mod:`edeflare.sim.surround`): ``lit-346`` (24) and ``lit-640`` (16), the forward model's
+flare of sources 2.5-250 times the street over night streets, the scene alone stored."""
 
 
 def list_recipes() -> list[str]:
@@ -927,7 +930,8 @@ def list_recipes() -> list[str]:
     --------
     >>> list_recipes()  # doctest: +NORMALIZE_WHITESPACE
     ['dsec-flare', 'eflare-2.7k', 'eflare-day', 'eflare-day-street', 'eflare-forward',
-     'eflare-forward-hd', 'eflare-gaps', 'eflare-mini', 'eflare-mix', 'eflare-night',
-     'eflare-night-sparse', 'eflare-r-sim', 'eflare-r-sim-mini', 'eflare-train']
+     'eflare-forward-hd', 'eflare-gaps', 'eflare-lit', 'eflare-mini', 'eflare-mix',
+     'eflare-night', 'eflare-night-sparse', 'eflare-r-sim', 'eflare-r-sim-mini',
+     'eflare-train']
     """
     return RECIPES.names()
