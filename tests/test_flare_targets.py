@@ -85,3 +85,36 @@ def test_the_annotated_set_takes_the_night_recording_only_when_it_is_faerys(
     args.faery = tmp_path / "faery"
     with pytest.raises(SystemExit, match=r"evt3\.raw: not faery 0\.7\.1's evt3\.raw"):
         flare_targets.annotated(args)
+
+
+def test_the_leave_one_out_chooses_every_knob_on_the_other_recordings(
+    flare_targets, real_data, tmp_path, monkeypatch
+):
+    """Two real recordings: the DAVIS lamps (a light) and the DAVIS street (none). Held out,
+    each is scored at the setting the other chose: the street alone asks to keep the most."""
+    import reference_window
+
+    monkeypatch.setattr(reference_window, "PICTURE", tmp_path / "absent.png")
+    monkeypatch.setattr(flare_targets, "RECORDINGS", ("davis346_flicker_lamps.aedat4",))
+    monkeypatch.setattr(flare_targets, "NO_LIGHT", ("davis346_street_cars.aedat4",))
+    args = argparse.Namespace(real=real_data, faery=None, model=None)
+    rows, verdicts = flare_targets.leave_one_out_set(args)
+    lamps, street = rows
+    assert (lamps["recording"], lamps["light"], street["light"]) == (
+        "davis346_flicker_lamps", "yes", "no",
+    )  # fmt: skip
+    assert lamps["card"] == pytest.approx(0.8715, abs=1e-4)  # the card's, four phases
+    assert street["card"] == pytest.approx(0.9832, abs=1e-4)  # the share it keeps
+    # the street chose for the lamps: the lowest threshold keeps the most of it
+    assert lamps["threshold of the others"] == 0.2
+    assert lamps["held out (every knob)"] < lamps["card"]
+    assert lamps["best in-sample"] >= lamps["card"]
+    assert street["held out (every knob)"] <= street["best in-sample"]
+    names = [v["target"] for v in verdicts]
+    assert names == [
+        "davis346_flicker_lamps: flare removed, every knob held out",
+        "davis346_flicker_lamps: light kept, every knob held out",
+        "davis346_flicker_lamps: scene kept, every knob held out",
+        "davis346_street_cars: kept, every knob held out",
+    ]
+    assert verdicts[0]["measured"] == pytest.approx(lamps["flare removed"], abs=1e-4)
