@@ -271,8 +271,9 @@ def reference_markdown() -> str:
         "",
         "Each shift knob adds itself times evidence that does not depend on it, so",
         "`ModelDeflarer.rule_terms(events, size)` splits a stream's keep logits into the",
-        "network's and each knob's term (`edeflare.rules.terms`): a search over the knobs on",
-        "annotated recordings then runs the network once.",
+        "model's own (the network's, or its keep head's) and each knob's term",
+        "(`edeflare.rules.terms`): a search over the knobs on annotated recordings",
+        "(`benchmarks/flare_targets.py`'s leave-one-out) then runs the model once.",
         "",
     ]
     for rule in RULES.values():

@@ -13,7 +13,7 @@ and :math:`u_j` what knob :math:`j` adds at 1. The count knobs (``light_free_sup
 ``light_free_crowding``) decide which events the evidence covers; they stay at the model's values.
 :class:`RuleTerms` holds both for one or more windowings of a stream
 (:meth:`edeflare.models.infer.ModelDeflarer.rule_terms`): a search over the knobs on
-annotated recordings (as ``experiments/sim-card/real_loo.py``'s leave-one-out) then runs
+annotated recordings (``benchmarks/flare_targets.py``'s leave-one-out) then runs
 no network.
 
 Examples
