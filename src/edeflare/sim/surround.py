@@ -33,7 +33,6 @@ Examples
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -141,13 +140,7 @@ class SurroundConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> SurroundConfig:
         """Build from a mapping; unknown keys are an error."""
-        if not isinstance(data, Mapping):
-            raise ParameterError(f"surround must be a mapping, got {type(data).__name__}")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ParameterError(f"unknown surround key(s) {unknown}; valid keys: {sorted(names)}")
-        return cls(**data)
+        return _v.dataclass_from_dict(cls, data, "surround")
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (:meth:`from_dict` round-trips it)."""
