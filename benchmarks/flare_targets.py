@@ -43,7 +43,7 @@ whether it is met, and writes ``results/flare_targets.json``:
    beside, as for eflare-r-sim).
 
 Missing test sets are simulated into ``--data`` first (about 5 minutes on 2 cores);
-the whole run takes 25-35 minutes on 2 cores. Run::
+the whole run takes 40-50 minutes on 2 cores. Run::
 
     python benchmarks/flare_targets.py [--model WEIGHTS] [--data DIR] [--real-only]
     python benchmarks/flare_targets.py --forward-only   # target 6 alone
@@ -550,7 +550,11 @@ def main() -> None:
         action="store_true",
         help="skip the leave-one-out (a model with a keep head takes a while over the terms)",
     )
-    parser.add_argument("--real-only", action="store_true", help="target 1 only (under a minute)")
+    parser.add_argument(
+        "--real-only",
+        action="store_true",
+        help="target 1 only (15-20 minutes on 2 cores, most of it the leave-one-out)",
+    )
     parser.add_argument("--forward-only", action="store_true", help="target 6 only")
     parser.add_argument("--mini-only", action="store_true", help="targets 3 and 4 only")
     args = parser.parse_args()
