@@ -117,7 +117,7 @@ def test_the_flickering_surroundings_fire_in_the_input_only():
                            forward_seed=inputs.forward_seed) for s in (script, lit)]  # fmt: skip
     plain, lamp = pairs
     extra = lamp.input.size - plain.input.size
-    assert extra > 2000  # the surroundings, at each of the four flicker edges
+    assert extra > 2000  # the surroundings, at each edge of the square flicker
     # the flare-free twins differ by the steady light's effect on the sensor only
     assert abs(lamp.gt.size - plain.gt.size) < 0.1 * extra
 

@@ -797,7 +797,7 @@ _TRAIN_PARTS = (*_MIX_PARTS, *_DAY_PARTS, ("fast-640", _FAST_PART))
 # (70 % of scripts, 100-140 Hz), its lit texture fires at each half period as flare. Sources
 # 2.5-250 times the street (eflare-mix's dense parts: up to 8,000), as a stronger source's
 # own flare covers the frame and hides its lit surroundings (seen in the first sequences
-# drawn). The scene alone stored. Seeds no other recipe uses.
+# drawn). The scene alone stored. Seeds no other recipe uses. 282 s with --workers 2 on 2 cores.
 _LIT = dataclasses.replace(
     _FORWARD,
     script=dataclasses.replace(_DENSE_SCRIPT, exposure=(2.5, 250.0)),
