@@ -76,7 +76,6 @@ from edeflare.io.sequence import list_sequences
 from edeflare.lights import Lights, bundled_lights, load_lights
 from edeflare.methods import Method, Streamer, create_method, deflare
 from edeflare.models.infer import ModelDeflarer, resolve_weights
-from edeflare.rules import knob_fields
 from edeflare.rules.terms import shift_knobs
 
 RECORDINGS = ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4")
@@ -287,7 +286,7 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
     if len(items) < 2:
         print("skipped leave-one-out: fewer than two real recordings")
         return [], []
-    card = {k: float(getattr(deflarer.rules.params[r], k)) for k, r in _knob_rules().items()}
+    card = {k: float(deflarer.rules[k]) for k in shift_knobs()}
     card_thr = round(deflarer.keep_threshold, 2)
     thresholds = sorted({*LOO_THRESHOLDS, card_thr})
     grid: dict[str, list[float]] = {k: sorted({*LOO_SHIFTS, v}) for k, v in card.items()}
@@ -344,11 +343,6 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
                                          f">= {need:.2f}", held[j], held[j] >= need,
                                          note if j == 0 else ""))  # fmt: skip
     return rows, verdicts
-
-
-def _knob_rules() -> dict[str, str]:
-    """Each rule shift knob and the rule it belongs to."""
-    return {k: rule.name for k, (rule, _) in knob_fields().items() if k in shift_knobs()}
 
 
 def _knobs_text(knobs: dict[str, float]) -> str:

@@ -70,8 +70,6 @@ def score_recording_kept(d, events, size, delay):
 
 def _card(d):
     """The model's rule shifts, by knob."""
-    from edeflare.rules import knob_fields
     from edeflare.rules.terms import shift_knobs
 
-    fields = knob_fields()
-    return {k: float(getattr(d.rules.params[fields[k][0].name], k)) for k in shift_knobs()}
+    return {k: float(d.rules[k]) for k in shift_knobs()}

@@ -9,8 +9,8 @@ score) and the choice is reported on the held-out one, beside the hand-set card'
 
 Each recording's rule terms (:meth:`edeflare.models.infer.ModelDeflarer.rule_terms`) in
 windowings delayed by 0, 5, 10 and 15 ms; phase k of four is the mean of windowings k
-and k + 1, as ``score_recording(phases=4)`` runs the product (checked: the hand-set card
-reproduces ``flare_targets.py``'s rows).
+and k + 1, as ``score_recording(phases=4)`` runs the product (``benchmarks/_held_out.py``'s
+``TermsRecording``; checked: the hand-set card reproduces ``flare_targets.py``'s rows).
 
     python real_loo.py --faery FAERY_TESTS_DATA --out real_loo.json
     python real_loo.py --faery FAERY_TESTS_DATA --out real_fits.json --fits-only \
@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import functools
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -31,13 +30,12 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE.parents[1] / "benchmarks"), str(HERE)]
 
+from _held_out import TermsRecording  # noqa: E402
 from fit import HAND, HAND_THRESHOLD, KNOBS  # noqa: E402
 
-from edeflare.eval.score import classify_events, combined_score  # noqa: E402
 from edeflare.io import read_events  # noqa: E402
 from edeflare.lights import bundled_lights, load_lights  # noqa: E402
 from edeflare.models.infer import ModelDeflarer, bundled_weights  # noqa: E402
-from edeflare.models.mask_kernels import keep_logit_threshold  # noqa: E402
 
 DELAYS = (0, 5_000, 10_000, 15_000)
 SHIFTS = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
@@ -49,43 +47,19 @@ def _night() -> ModelDeflarer:
     return ModelDeflarer(bundled_weights("night"), runtime="torch")
 
 
-class Item:
-    """One recording: its rule terms in four windowings; its regions."""
+class Item(TermsRecording):
+    """One recording: its rule terms at four window phases (``benchmarks/_held_out.py``)."""
 
     def __init__(self, name: str, events: np.ndarray, size, lights=None) -> None:
-        self.name = name
-        self.terms = _night().rule_terms(events, size, DELAYS)
-        self.regions = None
-        if lights is not None:
-            r = classify_events(events, lights, size)
-            self.regions = (r.flare, r.light, r.background if lights.score_background else None)
-        self.n = events.size
+        super().__init__(name, _night(), events, size, lights, phases=len(DELAYS))
+        assert self.terms.delays_us == DELAYS
 
     def scores(
         self, knobs: tuple[float, ...], thresholds: tuple[float, ...] = THRESHOLDS
     ) -> np.ndarray:
         """Per keep threshold: the mean over the four phases of the combined
         score (or the share kept)."""
-        values = dict(zip(KNOBS, knobs, strict=True))
-        n = len(DELAYS)
-        phases = [self.terms.logits(values, views=(p, (p + 1) % n)) for p in range(n)]
-        out = np.zeros(len(thresholds))
-        for i, threshold in enumerate(thresholds):
-            cut = keep_logit_threshold(threshold)
-            values = []
-            for logits in phases:
-                kept = logits > cut
-                if self.regions is None:
-                    values.append(kept.mean())
-                    continue
-                flare, light, back = self.regions
-                values.append(combined_score(
-                    1 - kept[flare].mean() if flare.any() else math.nan,
-                    kept[light].mean() if light.any() else math.nan,
-                    kept[back].mean() if back is not None and back.any() else math.nan,
-                ))  # fmt: skip
-            out[i] = np.mean(values)
-        return out
+        return self.measure(dict(zip(KNOBS, knobs, strict=True)), thresholds)[:, -1]
 
     def score(self, knobs: tuple[float, ...], threshold: float) -> float:
         """At one keep threshold."""

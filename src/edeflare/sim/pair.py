@@ -386,9 +386,8 @@ def _script_frames(
             bg = background_video(t_us).astype(np.float64)
             frames["background"] = frames["lit"] = frames["steady"] = bg
             if script.surround is not None:
-                frames["lit"] = bg * script.surround.illumination(script, t_us, size)
-                steady = script.surround.illumination(script, t_us, size, steady=True)
-                frames["steady"] = bg * steady
+                lit, steady = script.surround.illuminations(script, t_us, size)
+                frames["lit"], frames["steady"] = bg * lit, bg * steady
         yield t_us, frames
 
 

@@ -72,16 +72,25 @@ class LitSurround:
     ) -> np.ndarray:
         """The scene's illumination at ``t_us``, ``(height, width)``, in units of the ambient
         (1 far from the lamp); ``steady``: the flare-free twin's, the flicker's mean."""
+        flicker = _mean_flicker(script) if steady else float(script.intensity(t_us))
+        return 1.0 + (self.gain * flicker) * self._falloff(script, t_us, sensor_size)
+
+    def illuminations(
+        self, script: Any, t_us: float, sensor_size: tuple[int, int]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The observed and the steady illumination at ``t_us`` (:meth:`illumination`'s two),
+        the falloff computed once."""
+        falloff = self._falloff(script, t_us, sensor_size)
+        now, mean = float(script.intensity(t_us)), _mean_flicker(script)
+        return 1.0 + (self.gain * now) * falloff, 1.0 + (self.gain * mean) * falloff
+
+    def _falloff(self, script: Any, t_us: float, sensor_size: tuple[int, int]) -> np.ndarray:
+        """``(1 + (d / h)^2)^(-3/2)`` around the light's position at ``t_us``."""
         width, height = sensor_size
         cx, cy = script.position_px(t_us, sensor_size)
         yy, xx = np.ogrid[:height, :width]
         r2 = ((xx - cx) ** 2 + (yy - cy) ** 2) / self.radius_px**2
-        falloff = (1.0 + r2) ** -1.5
-        if steady:
-            flicker = 1.0 if script.flicker is None else 1.0 - script.flicker.depth / 2
-        else:
-            flicker = float(script.intensity(t_us))
-        return 1.0 + (self.gain * flicker) * falloff
+        return (1.0 + r2) ** -1.5
 
     def to_dict(self) -> dict[str, float]:
         """A JSON-ready dict."""
@@ -146,6 +155,11 @@ class SurroundConfig:
         """A JSON-ready dict (:meth:`from_dict` round-trips it)."""
         return {"probability": float(self.probability), "gain": list(self.gain),
                 "radius": list(self.radius)}  # fmt: skip
+
+
+def _mean_flicker(script: Any) -> float:
+    """The lamp's flicker factor averaged over a period (1 without flicker)."""
+    return 1.0 if script.flicker is None else 1.0 - script.flicker.depth / 2
 
 
 def surround_from_dict(data: Any) -> LitSurround:
