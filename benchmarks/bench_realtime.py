@@ -31,9 +31,11 @@ Each case runs ``--repeat`` times (default 2) in fresh processes and the fastest
 kept (the shared machine's noise only ever adds time).
 
 ``--baseline-src CHECKOUT`` adds a row per case for the bundled default of another
-checkout (``git worktree add /tmp/old COMMIT``), run from its own source in the same
-run, and a ``vs_baseline`` column (its time over each row's): the comparable number on
-a machine whose speed drifts. The repeats go round all methods of a case in turn.
+checkout (``git worktree add /tmp/old COMMIT``) and for each ``--model`` there, run from
+its own source in the same run, and a ``vs_baseline`` column (the other checkout's time
+over each row's: a ``--model`` row's against the same model there, every other row's
+against its default): the comparable number on a machine whose speed drifts. The repeats
+go round all methods of a case in turn.
 
 ``--model WEIGHTS`` (repeatable) adds a row per case for another model (a bundled
 model's name or a weights file), with the default runtime (``auto``).
@@ -213,9 +215,16 @@ def main() -> None:
             print(f"skip the street case: no {REAL / _STREET}", file=sys.stderr)
         for src, size, rate_label, case_methods in cases:
             ref = None
-            base_label = None if baseline is None else f"default @ {baseline[1]}"
-            if base_label is not None:
-                case_methods = [(base_label, "model", {}), *case_methods]
+            # the other checkout's rows: its default, and each --model run by its code; a
+            # --model row is compared with its own model's there, every other with the default
+            tag = None if baseline is None else f" @ {baseline[1]}"
+            base_label = None if tag is None else f"default{tag}"
+            base_rows = []
+            if tag is not None:
+                base_rows = [(base_label, "model", {})]
+                base_rows += [(f"{label}{tag}", m, prm) for label, m, prm in extra]
+                case_methods = [*base_rows, *case_methods]
+            base_labels = {label for label, _, _ in base_rows}
             # the repeats go round the methods, so a drift in the machine's speed touches
             # every method alike
             runs: dict[str, list[dict[str, float]]] = {}
@@ -225,7 +234,7 @@ def main() -> None:
                     if label in failed:
                         continue
                     dst = tmp / "out.h5"
-                    code_src = baseline[0] if label == base_label else None
+                    code_src = baseline[0] if label in base_labels else None
                     try:
                         run = _run(
                             _CHILD, str(src), str(dst), method, json.dumps(params), src=code_src
@@ -237,13 +246,14 @@ def main() -> None:
                         continue
                     dst.unlink(missing_ok=True)
                     runs.setdefault(label, []).append(run)
-            base = None
+            best = {label: min(r, key=lambda run: run["seconds"]) for label, r in runs.items()}
             for label, _, _ in case_methods:
                 if label in failed or label not in runs:
                     continue
-                r = min(runs[label], key=lambda run: run["seconds"])
-                if label == base_label:
-                    base = r["seconds"]
+                r = best[label]
+                own = f"{label.removesuffix(tag)}{tag}" if tag is not None else None
+                against = own if own in base_labels and own != base_label else base_label
+                base = best[against]["seconds"] if against in best else None
                 if label == "model unet2d.lite":
                     ref = r["seconds"]
                 p50, p95, worst = r["latency_ms"]

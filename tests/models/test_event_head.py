@@ -620,6 +620,23 @@ def test_an_ensemble_decides_by_the_mean_of_its_members_logits(tmp_path, rng):
         assert np.abs(alone[0][k] - alone[1][k]).max() > 0.1  # the members do differ
 
 
+def test_numpy_ensemble_equals_torch_in_blocks_of_any_size(monkeypatch, rng):
+    import edeflare.models.event_head as event_head
+    from edeflare.models.event_head import EventHeadEnsemble
+
+    heads = [_random_context_head(s) for s in (6, 7, 8)]
+    heads[1].standardise_on(torch.randn(40, 2) * 3.0 + 1.0)  # folded into its first layer
+    ensemble = EventHeadEnsemble(heads)
+    x = rng.normal(size=(1_000, 2 + 3 * 2)).astype(np.float32)  # features, 3 x 2 context
+    with torch.no_grad():
+        want = ensemble(torch.from_numpy(x)).numpy().ravel()
+    params = ensemble.numpy_params()
+    np.testing.assert_allclose(head_logits(params, x), want, rtol=1e-5, atol=1e-5)
+    monkeypatch.setattr(event_head, "HEAD_BLOCK", 96)  # 11 blocks, the last one short
+    np.testing.assert_allclose(head_logits(params, x), want, rtol=1e-5, atol=1e-5)
+    assert np.abs(want).max() > 0.1 and head_logits(params, x[:0]).shape == (0,)
+
+
 def test_onnx_export_of_an_ensemble_decides_alike(tmp_path, rng):
     pytest.importorskip("onnxruntime")
     from edeflare.models.event_head import EventHeadEnsemble
