@@ -219,7 +219,7 @@ def main() -> None:
             # --model row is compared with its own model's there, every other with the default
             tag = None if baseline is None else f" @ {baseline[1]}"
             base_label = None if tag is None else f"default{tag}"
-            base_rows = []
+            base_rows: list[tuple[str, str, dict[str, str]]] = []
             if tag is not None:
                 base_rows = [(base_label, "model", {})]
                 base_rows += [(f"{label}{tag}", m, prm) for label, m, prm in extra]

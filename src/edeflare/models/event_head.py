@@ -385,8 +385,8 @@ def head_logits(params: Mapping[str, Any], features: np.ndarray) -> np.ndarray:
 def _first_layers(params: Mapping[str, Any]) -> list[np.ndarray]:
     """Each member's first-layer weights over every feature column: an ensemble member's
     context rows where its own context columns lie and zeros on the others' (one product
-    per member over the whole block: a third faster for `learned` than copying out each
-    member's columns, and the same sums)."""
+    per member over the whole block, the same sums: `learned`'s head runs 1.4x faster than
+    when each member's columns were copied out)."""
     if "members" not in params:
         return [params["weights"][0]]
     n = len(params["features"])
