@@ -15,12 +15,11 @@ the spikes covered the frame at 20-55 events per pixel in 20 ms and hid the reco
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from pathlib import Path
 
 from edeflare.data.generate import generate_dataset
-from edeflare.data.recipe import _NIGHT_RECIPE, Mix
+from edeflare.data.recipe import RECIPES, Mix
 
 FILES = ("aermanager_test.aedat4", "aermanager_data_sample.aedat4")
 
@@ -28,9 +27,8 @@ FILES = ("aermanager_test.aedat4", "aermanager_data_sample.aedat4")
 def real_background_mix(background_dir: Path) -> Mix:
     files = tuple(str(background_dir / name) for name in FILES)
     recorded = {"background": "recorded", "background_files": files, "sensor_size": (320, 240)}
-    night = dataclasses.replace(
-        _NIGHT_RECIPE, name="real-bg.night-320", sequences=60, test_sequences=6, seed=218,
-        **recorded,
+    night = RECIPES["eflare-night"].replace(
+        name="real-bg.night-320", sequences=60, test_sequences=6, seed=218, **recorded
     )
     return Mix("real-bg", (("night-320", night),))
 
