@@ -497,18 +497,56 @@ class ModelDeflarer:
         out, supports, maps = self._network_logits(batch, sensor_size, need, cells)
         if not apply and head is None:
             return out, supports
-        w, scale = self.window_us, self.model.scale
+        w = self.window_us
         for k, ((start, events), v, sup) in enumerate(zip(batch, out, supports, strict=True)):
             # the lights' rates over the part of the window the stream covers
             ctx = WindowContext(events, sensor_size, covered_us(events, start, w), sup)
             if head is not None:
-                features = window_features(ctx, v, head["features"], window_us=w)
-                if maps is not None:
-                    features = np.hstack([features, gather_context(maps[k], events, scale)])
-                v = out[k] = head_logits(head, features)
+                columns = self._head_columns(ctx, v, None if maps is None else maps[k])
+                v = out[k] = head_logits(head, columns)
             if apply:
                 self.rules.apply(v, ctx)
         return out, supports
+
+    def _head_columns(
+        self, ctx: WindowContext, logits: np.ndarray, maps: np.ndarray | None
+    ) -> np.ndarray:
+        """A window's keep head inputs: its features, then its context maps' columns."""
+        names = self.head_params["features"]
+        features = window_features(ctx, logits, names, window_us=self.window_us)
+        if maps is None:
+            return features
+        return np.hstack([features, gather_context(maps, ctx.events, self.model.scale)])
+
+    def head_inputs(
+        self, batch: list[tuple[int, np.ndarray]], sensor_size: SensorSize
+    ) -> list[np.ndarray]:
+        """What the keep head reads of each event of ``(window_start_us, events)``
+        windows: ``(n, columns)`` float32 per window, its features
+        (:func:`~edeflare.models.event_features.window_features`) then, with a context,
+        each member's context columns; ``head_logits(self.head_params, x)`` of them is
+        :meth:`window_logits` without rules. For fitting a head to other data.
+
+        Examples
+        --------
+        >>> from edeflare.events import make_events
+        >>> d = ModelDeflarer(bundled_weights("learned"), runtime="torch")
+        >>> ev = make_events([10, 30, 50], [1, 2, 3], [1, 2, 3], [1, 0, 1])
+        >>> (x,) = d.head_inputs([(0, ev)], (64, 64))
+        >>> x.shape                      # 21 features and three members' 8 context maps
+        (3, 45)
+        """
+        if self.head_params is None:
+            raise EdeflareError(f"{self.weights}: no keep head to read inputs for")
+        out, supports, maps = self._network_logits(batch, sensor_size, True)
+        w = self.window_us
+        return [
+            self._head_columns(
+                WindowContext(ev, sensor_size, covered_us(ev, start, w), sup),
+                v, None if maps is None else maps[k],
+            )
+            for k, ((start, ev), v, sup) in enumerate(zip(batch, out, supports, strict=True))
+        ]  # fmt: skip
 
     def rule_terms(
         self,
