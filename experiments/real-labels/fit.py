@@ -169,13 +169,13 @@ def load_rows(run: Path):
     return sim, real
 
 
-def training_rows(sim, real, names):
+def training_rows(sim, real, names, alpha: float = 1.0):
     """Rows, labels and weights: the simulated rows with train-head's weights (mean 1),
     the real ones in all as much, each recording alike, each labelled region alike."""
     x = [sim["train_cols"]]
     y = [sim["train_y"]]
     w = [loss_weights(sim["train_y"], HeadTrainingConfig()).numpy()]
-    total = float(w[0].sum())
+    total = alpha * float(w[0].sum())
     rng = np.random.default_rng(0)
     for name in names:
         cols, code, _ = real[name]
@@ -192,11 +192,11 @@ def training_rows(sim, real, names):
     return np.concatenate(x), np.concatenate(y), np.concatenate(w)
 
 
-def fit(sim, real, names, seed_base: int = 0):
+def fit(sim, real, names, alpha: float = 1.0, seed_base: int = 0):
     """`learned`'s head with its three perceptrons fitted further on these rows."""
     model, card = load_model(bundled_weights("learned"))
     head = model.head
-    x, y, w = training_rows(sim, real, names)
+    x, y, w = training_rows(sim, real, names, alpha)
     xt, yt, wt = torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(w)
     n = len(head.feature_names)
     k = head.context["channels"]
@@ -229,8 +229,17 @@ def fit(sim, real, names, seed_base: int = 0):
 
 def score(real_item, params, threshold: float, lights_scored: bool) -> dict[str, float]:
     """A recording's scores at four phases, as TermsRecording.measure (benchmarks/_held_out.py)."""
+    return scores(real_item, params, [threshold], lights_scored)[0]
+
+
+def scores(real_item, params, thresholds, lights_scored: bool) -> list[dict[str, float]]:
+    """:func:`score` at each of ``thresholds`` (the head run once)."""
     cols, code, _ = real_item
     logits = np.stack([head_logits(params, c) for c in cols])
+    return [_score(logits, code, t, lights_scored) for t in thresholds]
+
+
+def _score(logits, code, threshold: float, lights_scored: bool) -> dict[str, float]:
     w = 20_000
     views = [(k * w // PHASES % w, (k * w // PHASES + 5_000) % w) for k in range(PHASES)]
     cut = keep_logit_threshold(threshold)
@@ -275,6 +284,66 @@ def cmd_loo(args) -> None:
               flush=True)
 
 
+ALPHAS = (0.1, 0.3, 1.0)
+THRESHOLDS = tuple(float(t) for t in np.round(np.arange(0.05, 0.951, 0.05), 2))
+
+
+def value(s: dict[str, float]) -> float:
+    """The score a leave-one-out choice reads: combined, or the share kept without a light."""
+    return s["combined"]
+
+
+def cmd_nested(args) -> None:
+    """Every fit without one or two recordings at each ALPHA, its left-out recordings scored
+    at every threshold (cached in nested.json), then the nested choice per recording."""
+    run = Path(args.run)
+    sim, real = load_rows(run)
+    names = sorted(real)
+    part, parts = (int(v) for v in args.part.split("/"))
+    path = run / ("nested.json" if parts == 1 else f"nested-{part}-of-{parts}.json")
+    cache = {}
+    for other in sorted(run.glob("nested*.json")):  # every part's fits so far
+        cache.update(json.loads(other.read_text()))
+    plans = [(a, (o,)) for a in ALPHAS for o in names]
+    plans += [(a, (o, i)) for a in ALPHAS for o in names for i in names if o < i]
+    for n, (alpha, out) in enumerate(plans):
+        key = f"{alpha}|{'+'.join(out)}"
+        if key in cache or n % parts != part:
+            continue
+        _, _, params, sim_thr, _ = fit(sim, real, [r for r in names if r not in out], alpha)
+        cache[key] = {"sim_threshold": sim_thr, "scores": {
+            r: [value(v) for v in scores(real[r], params, THRESHOLDS, r in LIT)] for r in out}}
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(cache) + "\n")
+        tmp.replace(path)
+        print(f"{n + 1}/{len(plans)} {key}", flush=True)
+    missing = [f"{a}|{'+'.join(out)}" for a, out in plans if f"{a}|{'+'.join(out)}" not in cache]
+    if missing:
+        print(f"{len(missing)} fits left to other parts", flush=True)
+        return
+
+    def inner(alpha: float, o: str) -> np.ndarray:
+        """Mean over i != o of fit-without-{o, i}'s score on i, per threshold."""
+        rows = [cache[f"{alpha}|{'+'.join(sorted((o, i)))}"]["scores"][i] for i in names if i != o]
+        return np.mean(rows, axis=0)
+
+    result = {}
+    for o in names:
+        table = {a: inner(a, o) for a in ALPHAS}
+        a, k = max(((a, k) for a in ALPHAS for k in range(len(THRESHOLDS))),
+                   key=lambda ak: table[ak[0]][ak[1]])  # fmt: skip
+        result[o] = {"alpha": a, "threshold": THRESHOLDS[k],
+                     "inner_mean": float(table[a][k]),
+                     "held_out": cache[f"{a}|{o}"]["scores"][o][k]}  # fmt: skip
+        print(f"{o:32s} alpha {a} thr {THRESHOLDS[k]:.2f} held out {result[o]['held_out']:.3f}")
+    plain = {a: np.mean([cache[f"{a}|{o}"]["scores"][o] for o in names], axis=0) for a in ALPHAS}
+    a, k = max(((a, k) for a in ALPHAS for k in range(len(THRESHOLDS))),
+               key=lambda ak: plain[ak[0]][ak[1]])  # fmt: skip
+    result["_bundle"] = {"alpha": a, "threshold": THRESHOLDS[k], "loo_mean": float(plain[a][k])}
+    print("bundle:", result["_bundle"])
+    (run / "choice.json").write_text(json.dumps(result, indent=1) + "\n")
+
+
 def cmd_all(args) -> None:
     run = Path(args.run)
     sim, real = load_rows(run)
@@ -303,11 +372,14 @@ def main() -> None:
     r.add_argument("--faery", type=Path)
     lo = sub.add_parser("loo")
     lo.add_argument("run")
+    ne = sub.add_parser("nested")
+    ne.add_argument("run")
+    ne.add_argument("--part", default="0/1", help="I/N: the fits with index %% N == I")
     a = sub.add_parser("all")
     a.add_argument("run")
     a.add_argument("out")
     args = p.parse_args()
-    {"rows": cmd_rows, "loo": cmd_loo, "all": cmd_all}[args.cmd](args)
+    {"rows": cmd_rows, "loo": cmd_loo, "nested": cmd_nested, "all": cmd_all}[args.cmd](args)
 
 
 if __name__ == "__main__":

@@ -40,6 +40,7 @@ from . import (
     simulate,
     train,
     train_head,
+    tune_head,
     view,
 )
 
@@ -120,6 +121,7 @@ COMMANDS = (
     pair,
     train,
     train_head,
+    tune_head,
     bundle,
     export,
     ablate,

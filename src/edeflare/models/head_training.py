@@ -67,6 +67,7 @@ __all__ = [
     "HeadTrainingConfig",
     "choose_threshold",
     "collect_features",
+    "collect_sets",
     "context_columns",
     "fit_context_head",
     "fit_head",
@@ -641,6 +642,43 @@ def _cached(path: Path, make: Callable[[], dict[str, np.ndarray]]) -> dict[str, 
     return data
 
 
+def collect_sets(
+    folders: Sequence[Path],
+    base: Path,
+    run: Path,
+    config: HeadTrainingConfig,
+    *,
+    progress: bool = True,
+) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, list[str]], torch.nn.Module]:
+    """The rows of the dataset ``folders``' training (balanced) and test splits over the
+    network of ``base`` (its own keep logits: its rules off, any head of its own left
+    out), cached in ``run``; the files of each split; and the network (a torch module,
+    ``base``'s head still on it where it has one)."""
+    from .infer import ModelDeflarer
+    from .weights import read_card
+
+    card = read_card(base)
+    deflarer = ModelDeflarer(base, runtime="torch", batch_windows=1, **{k: 0 for k in card.rules})
+    deflarer.head_params = None
+    net = deflarer.model
+    files_of: dict[str, list[str]] = {}
+    sets = {}
+    for split, balanced in (("train", True), ("test", False)):
+        files = [f for d in folders if (d / split).is_dir() for f in list_sequences(d / split)]
+        if not files:
+            raise EdeflareError(f"no {split} sequences in {', '.join(map(str, folders))}")
+        files_of[split] = [str(f) for f in files]
+        key = _identity(files, base, config, split)
+        sets[split] = _cached(
+            run / f"features-{split}-{key}.npz",
+            lambda files=files, balanced=balanced, split=split: collect_features(
+                files, deflarer.window_logits, deflarer.window_us, config,
+                balanced=balanced, progress=progress, desc=split, cell_scale=net.scale,
+            ),
+        )  # fmt: skip
+    return sets, files_of, net
+
+
 def train_head(
     data: Sequence[str | os.PathLike[str]],
     base_weights: str | os.PathLike[str],
@@ -659,7 +697,6 @@ def train_head(
     the head learns the teacher's keep probabilities instead of the labels (distillation:
     one small head that decides like many).
     """
-    from .infer import ModelDeflarer
     from .weights import read_card, save_model
 
     config = config or HeadTrainingConfig()
@@ -673,27 +710,9 @@ def train_head(
     run.mkdir(parents=True, exist_ok=True)
     folders = [part for d in data for part in dataset_folders(d)]
     card = read_card(base)
-    # the base network's own keep logits: its rules off, any head of its own left out
-    deflarer = ModelDeflarer(base, runtime="torch", batch_windows=1, **{k: 0 for k in card.rules})
-    deflarer.head_params = None
-    net = deflarer.model
+    sets, summary_files, net = collect_sets(folders, base, run, config, progress=progress)
     if getattr(net, "head", None) is not None:
         del net.head  # a fresh head over the same network
-    summary_files: dict[str, list[str]] = {}
-    sets = {}
-    for split, balanced in (("train", True), ("test", False)):
-        files = [f for d in folders if (d / split).is_dir() for f in list_sequences(d / split)]
-        if not files:
-            raise EdeflareError(f"no {split} sequences in {', '.join(map(str, folders))}")
-        summary_files[split] = [str(f) for f in files]
-        key = _identity(files, base, config, split)
-        sets[split] = _cached(
-            run / f"features-{split}-{key}.npz",
-            lambda files=files, balanced=balanced, split=split: collect_features(
-                files, deflarer.window_logits, deflarer.window_us, config,
-                balanced=balanced, progress=progress, desc=split, cell_scale=net.scale,
-            ),
-        )  # fmt: skip
     train, val = sets["train"], sets["test"]
     targets = None if teacher_head is None else _head_probabilities(teacher_head, train)
     heads = [

@@ -1,0 +1,352 @@
+r"""Fit a trained keep head further to annotated real recordings, beside simulated pairs.
+
+A head learned from simulation alone meets real flare it never saw. A real recording has
+no flare-free twin, but an annotation of its lights (:mod:`edeflare.lights`) says which of
+its events a de-flarer should keep, as the scorer reads it (:func:`region_labels`): the
+light's own events kept, its halo and ghost removed, the rest of the scene kept where the
+annotation scores it; a recording without a light, every event kept. These labels are
+weak (a halo's region also holds the scene lit under it), so they join the simulated
+pairs' rows instead of replacing them:
+
+1. **Real rows.** Each recording in the windowings its score runs
+   (:data:`DELAYS_US`: the model's windows delayed by 0, 5, 10 and 15 ms), every event's
+   head inputs (:meth:`~edeflare.models.infer.ModelDeflarer.head_inputs`); at most
+   ``per_region`` rows per labelled region and recording are drawn.
+2. **Simulated rows.** Drawn from the pairs' training split as ``train-head`` draws them,
+   the head's context columns computed by the head itself.
+3. **Weights.** The simulated rows keep ``train-head``'s weights (the two classes alike,
+   mean 1); the real rows weigh ``real_weight`` times as much in all, each recording
+   alike and each labelled region of a recording alike.
+4. **Fit.** Only the perceptrons are fitted, from the head's own weights and
+   standardisation (a context U-Net, frozen, gives their inputs), with Adam on the
+   balanced cross-entropy of ``train-head``.
+
+The layout of the head is unchanged: the tuned model runs, exports and streams as the one
+it came from.
+
+Examples
+--------
+>>> from edeflare.events import make_events
+>>> from edeflare.lights import Lights, LightSource
+>>> ev = make_events([0, 1, 2], [10, 16, 40], [10, 10, 10], [1, 1, 0])
+>>> lights = Lights((LightSource.circle(10, 10, 2),), score_background=True)
+>>> [REGIONS[c] for c in region_labels(ev, (64, 48), lights)]
+['light', 'flare', 'scene']
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..data.folders import dataset_folders
+from ..errors import EdeflareError
+from ..events import SensorSize
+from ..io._atomic import atomic_path
+from ..io.sequence import file_sha256
+from ..lights import Lights
+from .event_head import EventHead, EventHeadEnsemble, head_logits
+from .head_training import LN3, HeadTrainingConfig, loss_weights
+
+__all__ = [
+    "DELAYS_US",
+    "REGIONS",
+    "LabelledRecording",
+    "TuningConfig",
+    "fit_members",
+    "real_rows",
+    "recording_inputs",
+    "region_labels",
+    "tune_head",
+]
+
+REGIONS = ("unlabelled", "light", "flare", "scene")
+"""The codes of :func:`region_labels`: 0 unlabelled, 1 the light (kept), 2 its halo and
+ghost (removed), 3 the scene (kept)."""
+
+DELAYS_US = (0, 5_000, 10_000, 15_000)
+"""The windowings a recording's rows are drawn from: those its score runs at four window
+phases (``score_recording(phases=4)``) with a mask model's 5 ms second view."""
+
+
+def region_labels(events: np.ndarray, sensor_size: SensorSize, lights: Lights | None) -> np.ndarray:
+    """Each event's region code (:data:`REGIONS`) as the scorer reads the annotation
+    (:func:`~edeflare.eval.score.classify_events`): light 1, halo and ghost 2, the rest
+    of the scene 3 where the annotation scores it (else 0, unlabelled); every event 3
+    without ``lights`` (a recording without a light)."""
+    from ..eval.score import classify_events
+
+    if lights is None:
+        return np.full(events.size, 3, np.int8)
+    regions = classify_events(events, lights, sensor_size)
+    code = np.zeros(events.size, np.int8)
+    if lights.score_background:
+        code[regions.background] = 3
+    code[regions.flare] = 2
+    code[regions.light] = 1
+    return code
+
+
+def recording_inputs(
+    deflarer: Any, events: np.ndarray, sensor_size: SensorSize, delays_us: Sequence[int]
+) -> np.ndarray:
+    """Every event's keep head inputs in each windowing ``delays_us``: ``(delays, n,
+    columns)`` float32 (a mask model's windows delayed as :class:`TwoViewStreamer`'s second
+    view is).
+
+    ``deflarer``: a :class:`~edeflare.models.infer.ModelDeflarer` with a keep head.
+    """
+    w = deflarer.window_us
+    t = events["t"].astype(np.int64)
+    out: np.ndarray | None = None
+    for v, delay in enumerate(delays_us):
+        i, batch, spans = 0, [], []
+        while i < events.size:  # each window of this windowing
+            start = (int(t[i]) + int(delay)) // w * w - int(delay)
+            k = int(np.searchsorted(t, start + w, side="left"))
+            batch.append((start, events[i:k]))
+            spans.append((i, k))
+            i = k
+        for lo in range(0, len(batch), 8):
+            columns = deflarer.head_inputs(batch[lo : lo + 8], sensor_size)
+            for (a, b), c in zip(spans[lo : lo + 8], columns, strict=True):
+                if out is None:
+                    out = np.empty((len(delays_us), events.size, c.shape[1]), np.float32)
+                out[v, a:b] = c
+    if out is None:
+        raise EdeflareError("a recording without events has no rows to learn from")
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class LabelledRecording:
+    """A real recording's head inputs ``(delays, n, columns)`` and region codes ``(n,)``."""
+
+    name: str
+    inputs: np.ndarray
+    codes: np.ndarray
+
+    def __post_init__(self) -> None:
+        if self.inputs.ndim != 3 or self.inputs.shape[1] != self.codes.size:
+            raise EdeflareError(
+                f"{self.name}: inputs {self.inputs.shape} do not match {self.codes.size} codes"
+            )
+        if not (self.codes > 0).any():
+            raise EdeflareError(f"{self.name}: no labelled event (its annotation scores none)")
+
+
+@dataclasses.dataclass(frozen=True)
+class TuningConfig:
+    """How a head is fitted further (recorded in the run's summary)."""
+
+    real_weight: float = 1.0
+    """The real rows' total weight, times the simulated rows'."""
+    per_region: int = 50_000
+    """Rows drawn per labelled region and recording (over its windowings)."""
+    epochs: int = 3
+    lr: float = 1e-3
+    batch_size: int = 4_096
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        value = self.real_weight
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise EdeflareError(f"real_weight must be a positive number, got {value!r}")
+        for name in ("per_region", "epochs", "batch_size"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise EdeflareError(f"{name} must be a positive integer, got {v!r}")
+
+
+def real_rows(
+    recordings: Sequence[LabelledRecording], total_weight: float, config: TuningConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The drawn rows of ``recordings`` (in that order), their labels (True: keep) and
+    weights summing to ``total_weight``: each recording alike, each labelled region alike.
+
+    Examples
+    --------
+    >>> rec = LabelledRecording("r", np.zeros((2, 3, 1), np.float32),
+    ...                         np.array([1, 2, 2], np.int8))
+    >>> x, y, w = real_rows([rec], 6.0, TuningConfig())
+    >>> x.shape, y.tolist(), np.round(w, 3).tolist()   # 2 windowings x 1 light, x 2 flare
+    ((6, 1), [True, True, False, False, False, False], [1.5, 1.5, 0.75, 0.75, 0.75, 0.75])
+    """
+    rng = np.random.default_rng(config.seed)
+    xs, ys, ws = [], [], []
+    for rec in recordings:
+        present = [c for c in (1, 2, 3) if (rec.codes == c).any()]
+        views = rec.inputs.shape[0]
+        for c in present:
+            idx = np.flatnonzero(rec.codes == c)
+            n = min(config.per_region, idx.size * views)
+            pick = rng.choice(idx.size * views, n, replace=False)  # (windowing, event)
+            xs.append(rec.inputs[pick // idx.size, idx[pick % idx.size]])
+            ys.append(np.full(n, c != 2))
+            share = total_weight / len(recordings) / len(present) / n
+            ws.append(np.full(n, share, np.float32))
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws)
+
+
+def fit_members(
+    head: EventHead | EventHeadEnsemble,
+    sim_x: np.ndarray,
+    sim_y: np.ndarray,
+    recordings: Sequence[LabelledRecording],
+    config: TuningConfig,
+) -> EventHead | EventHeadEnsemble:
+    """``head``'s perceptrons fitted further (in place) on the simulated rows ``sim_x``
+    (every input column, the context's included) with labels ``sim_y`` and on the
+    ``recordings``' rows (:func:`real_rows`, ``config.real_weight`` of the simulated
+    rows' weight); the context networks and the standardisation are left as they are."""
+    w_sim = loss_weights(np.asarray(sim_y, bool), HeadTrainingConfig()).numpy()
+    if recordings:
+        rx, ry, rw = real_rows(recordings, config.real_weight * float(w_sim.sum()), config)
+        x = np.concatenate([np.asarray(sim_x, np.float32), rx])
+        y, w = np.concatenate([np.asarray(sim_y, bool), ry]), np.concatenate([w_sim, rw])
+    else:
+        x, y, w = np.asarray(sim_x, np.float32), np.asarray(sim_y, bool), w_sim
+    if x.shape[1] != head.columns:
+        raise EdeflareError(f"rows have {x.shape[1]} columns, the head reads {head.columns}")
+    xt, yt = torch.from_numpy(np.ascontiguousarray(x)), torch.from_numpy(y.astype(np.float32))
+    wt = torch.from_numpy(w)
+    members = list(head.members) if isinstance(head, EventHeadEnsemble) else [head]
+    n = len(head.feature_names)
+    k = head.context["channels"] if head.context else 0
+    size = config.batch_size
+    for i, member in enumerate(members):
+        torch.manual_seed(config.seed + i)
+        cols = torch.cat([xt[:, :n], xt[:, n + i * k : n + (i + 1) * k]], 1) if k else xt
+        steps = config.epochs * -(-len(yt) // size)
+        opt = torch.optim.Adam(member.layers.parameters(), lr=config.lr)
+        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
+        gen = torch.Generator().manual_seed(config.seed + i)
+        member.train()
+        for _ in range(config.epochs):
+            order = torch.randperm(len(yt), generator=gen)
+            for lo in range(0, len(yt), size):
+                b = order[lo : lo + size]
+                loss = torch.nn.functional.binary_cross_entropy_with_logits(
+                    member(cols[b]) + LN3, yt[b], weight=wt[b]
+                )
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                sched.step()
+        member.eval()
+    return head
+
+
+def _recording_key(weights: str, name: str, events: np.ndarray, lights: Lights | None) -> str:
+    h = hashlib.sha256()
+    h.update(file_sha256(Path(weights)).encode())
+    h.update(json.dumps([name, list(DELAYS_US)]).encode())
+    h.update(np.ascontiguousarray(events).tobytes())
+    if lights is not None:
+        h.update(repr(lights).encode())
+    return h.hexdigest()[:16]
+
+
+def tune_head(
+    weights: str | os.PathLike[str],
+    data: Sequence[str | os.PathLike[str]],
+    recordings: Sequence[tuple[str, np.ndarray, SensorSize, Lights | None]],
+    run_dir: str | os.PathLike[str],
+    config: TuningConfig | None = None,
+    *,
+    keep_threshold: float | None = None,
+    command: str = "",
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Fit the keep head of ``weights`` further on ``data``'s simulated training pairs and
+    the annotated ``recordings`` ``(name, events, sensor_size, lights or None)``; write
+    ``run_dir/model.safetensors`` and ``run_dir/tune.json``; return that summary.
+
+    The keep threshold is ``keep_threshold``, or, without it, chosen on the data's test
+    splits as ``train-head`` chooses it (never on a real recording). The rows are cached
+    in ``run_dir``: a rerun after a kill goes on from them.
+    """
+    from .head_training import _group, choose_threshold, collect_sets, context_columns
+    from .infer import ModelDeflarer
+    from .weights import load_model, save_model
+
+    config = config or TuningConfig()
+    base = Path(weights)
+    model, card = load_model(base)
+    head = getattr(model, "head", None)
+    if not isinstance(head, (EventHead, EventHeadEnsemble)):
+        raise EdeflareError(f"{weights}: no keep head to fit further (train one with train-head)")
+    if keep_threshold is not None and not 0.0 < keep_threshold < 1.0:
+        raise EdeflareError(f"keep_threshold must be in (0, 1), got {keep_threshold}")
+    names = [name for name, *_ in recordings]
+    if len(set(names)) != len(names):
+        raise EdeflareError(f"recordings need distinct names, got {names}")
+    run = Path(run_dir)
+    run.mkdir(parents=True, exist_ok=True)
+    folders = [part for d in data for part in dataset_folders(d)]
+    collect = HeadTrainingConfig(
+        features=tuple(head.feature_names),
+        context=head.context["channels"] if head.context else 0,
+    )
+    sets, files_of, _ = collect_sets(folders, base, run, collect, progress=progress)
+    train, val = sets["train"], sets["test"]
+    columns = {
+        split: context_columns(head, rows) if head.context else rows["x"]
+        for split, rows in sets.items()
+    }
+    deflarer = ModelDeflarer(base, runtime="torch", batch_windows=8)
+    labelled = []
+    # in the order of their names, so that the draws do not hang on the order given
+    for name, events, size, lights in sorted(recordings, key=lambda r: r[0]):
+        path = run / f"real-{name}-{_recording_key(str(base), name, events, lights)}.npz"
+        if path.is_file():
+            with np.load(path) as z:
+                inputs, codes = z["inputs"], z["codes"]
+        else:
+            inputs = recording_inputs(deflarer, events, size, DELAYS_US)
+            codes = region_labels(events, size, lights)
+            with atomic_path(path) as tmp:
+                with open(tmp, "wb") as f:
+                    np.savez(f, inputs=inputs, codes=codes)
+        labelled.append(LabelledRecording(name, inputs, codes))
+    fit_members(head, columns["train"], train["y"], labelled, config)
+    params = head.numpy_params()
+    groups = np.array([_group(files_of["test"], int(i)) for i in val["source"]])
+    sim_threshold, table = choose_threshold(head_logits(params, columns["test"]), val["y"], groups)
+    threshold = sim_threshold if keep_threshold is None else float(keep_threshold)
+    card = dataclasses.replace(
+        card,
+        keep_threshold=threshold,
+        command=command or f"tune_head({str(weights)!r}, {[str(d) for d in data]!r}, ...)",
+        data=" ".join([*(str(d) for d in folders), *names]),
+        metrics={"head_validation_score": max(r["score"] for r in table)},
+        notes=(card.notes + "; " if card.notes else "")
+        + f"its perceptrons fitted further on annotated real recordings ({', '.join(names)})",
+    )
+    save_model(run / "model.safetensors", model, card)
+    summary = {
+        "keep_threshold": threshold,
+        "threshold_chosen_on": "given" if keep_threshold is not None else "the test splits",
+        "simulated_threshold": sim_threshold,
+        "threshold_table": table,
+        "recordings": {
+            r.name: {REGIONS[c]: int((r.codes == c).sum()) for c in range(len(REGIONS))}
+            for r in labelled
+        },
+        "train_events": int(train["y"].size),
+        "config": dataclasses.asdict(config),
+        "base_weights": str(base),
+        "base_sha256": file_sha256(base),
+    }
+    with atomic_path(run / "tune.json") as tmp:
+        tmp.write_text(json.dumps(summary, indent=1) + "\n")
+    return summary

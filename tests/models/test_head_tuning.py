@@ -1,0 +1,173 @@
+"""A trained keep head fitted further to annotated real recordings (edeflare.models.head_tuning)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from conftest import random_events
+from edeflare import deflare
+from edeflare.cli import main
+from edeflare.errors import EdeflareError
+from edeflare.events import make_events, sort_events
+from edeflare.io import write_events
+from edeflare.lights import Lights, LightSource, save_lights
+from edeflare.models.event_head import EventHead, EventHeadEnsemble, head_logits
+from edeflare.models.head_training import HeadTrainingConfig, train_head
+from edeflare.models.head_tuning import (
+    REGIONS,
+    LabelledRecording,
+    TuningConfig,
+    fit_members,
+    real_rows,
+    recording_inputs,
+    region_labels,
+    tune_head,
+)
+from edeflare.models.infer import ModelDeflarer, bundled_weights
+from edeflare.models.weights import read_card
+
+
+def test_regions_are_the_scorers_by_hand():
+    # a light of radius 3 at (20, 20) on 100x80: its halo from 5 px to 18 px, its ghost a
+    # disc of 6 px round the reflection (79, 59)
+    ev = make_events([0, 1, 2, 3, 4], [20, 30, 79, 60, 21], [20, 20, 59, 20, 21], [1, 1, 0, 0, 1])
+    scored = Lights((LightSource.circle(20, 20, 3),))
+    names = [REGIONS[c] for c in region_labels(ev, (100, 80), scored)]
+    assert names == ["light", "flare", "flare", "scene", "light"]
+    unscored = Lights((LightSource.circle(20, 20, 3),), score_background=False)
+    assert [REGIONS[c] for c in region_labels(ev, (100, 80), unscored)][3] == "unlabelled"
+    assert region_labels(ev, (100, 80), None).tolist() == [3] * 5  # no light: all scene
+
+
+def test_real_rows_weigh_each_recording_and_each_region_alike():
+    lit = LabelledRecording(
+        "lit",
+        np.arange(2 * 115, dtype=np.float32).reshape(2, 115, 1),
+        np.array([1] * 10 + [2] * 5 + [3] * 100, np.int8),
+    )
+    dark = LabelledRecording("dark", np.zeros((2, 50, 1), np.float32), np.full(50, 3, np.int8))
+    x, y, w = real_rows([lit, dark], 12.0, TuningConfig(per_region=20))
+    # lit: 20 of its 2 x 10 light rows, all 10 flare rows, 20 of 200 scene rows; dark: 20
+    assert x.shape == (70, 1) and y.tolist() == [True] * 20 + [False] * 10 + [True] * 40
+    assert w.sum() == pytest.approx(12.0)
+    assert [round(float(w[a:b].sum()), 4) for a, b in ((0, 20), (20, 30), (30, 50), (50, 70))] == [
+        2.0, 2.0, 2.0, 6.0]  # fmt: skip
+    # the flare rows are the flare events' own inputs, in either windowing
+    assert set(x[20:30, 0].tolist()) == {*range(10, 15), *range(125, 130)}
+    with pytest.raises(EdeflareError, match="no labelled event"):
+        LabelledRecording("none", np.zeros((1, 3, 1), np.float32), np.zeros(3, np.int8))
+
+
+def _context_ensemble() -> EventHeadEnsemble:
+    torch.manual_seed(0)
+    ctx = {"channels": 2, "inputs": 33, "widths": [4, 8]}
+    return EventHeadEnsemble([EventHead(["net_logit", "support"], (8,), ctx) for _ in range(2)])
+
+
+def test_fitting_members_learns_the_real_labels_and_leaves_the_contexts_alone(rng):
+    head = _context_ensemble()
+    frozen = {k: v.clone() for k, v in head.state_dict().items() if "layers" not in k}
+    sim_x = rng.normal(size=(2_000, 6)).astype(np.float32)
+    sim_y = rng.random(2_000) < 0.5  # the simulated rows say nothing
+    inputs = rng.normal(size=(2, 1_000, 6)).astype(np.float32)
+    codes = np.where(inputs[0, :, 1] > 0, 2, 3).astype(np.int8)  # flare where support > 0
+    inputs[1, :, 1] = inputs[0, :, 1]
+    rec = LabelledRecording("r", inputs, codes)
+    fit_members(head, sim_x, sim_y, [rec], TuningConfig(real_weight=4.0, epochs=20, lr=1e-2, batch_size=256))
+    logits = head_logits(head.numpy_params(), inputs[0])
+    assert np.mean((logits > np.median(logits)) == (codes == 3)) > 0.9
+    after = head.state_dict()
+    assert all(torch.equal(v, after[k]) for k, v in frozen.items())  # contexts, scales
+    with pytest.raises(EdeflareError, match="columns"):
+        fit_members(head, sim_x[:, :5], sim_y, [], TuningConfig())
+
+
+def test_a_recordings_inputs_give_the_models_own_logits(rng):
+    d = ModelDeflarer(bundled_weights("learned"), runtime="torch")
+    ev = random_events(rng, 3_000, (64, 48), t0=3_000, span_us=50_000)
+    inputs = recording_inputs(d, ev, (64, 48), (0, 5_000))
+    assert inputs.shape == (2, 3_000, 45)
+    base = d.rule_terms(ev, (64, 48), (0, 5_000)).base
+    for v in range(2):
+        np.testing.assert_allclose(head_logits(d.head_params, inputs[v]), base[v], atol=1e-4)
+
+
+def _pairs(folder, rng, size=(48, 32)):
+    """Pairs whose flare is a dense burst in the left half (not in gt), sparse scene right."""
+    from edeflare.io.dsec import write_dsec_groups
+
+    for split, k in (("train", 2), ("test", 1)):
+        for i in range(k):
+            scene = random_events(rng, 300, (size[0] // 2, size[1]), t0=0, span_us=60_000)
+            scene["x"] += size[0] // 2
+            flare = random_events(rng, 3_000, (size[0] // 2, size[1]), t0=0, span_us=60_000)
+            inp = sort_events(np.concatenate([scene, flare]))
+            write_dsec_groups(folder / split / f"s{i}.h5", {"input": inp, "gt": scene}, size)
+
+
+def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng):
+    # a head trained to remove the pairs' dense left half, then told by a real recording
+    # of the same kind that its dense left half is a light, to be kept
+    from edeflare.io.sequence import read_sequence
+    from edeflare.models import create_model
+    from edeflare.models.weights import ModelCard, save_model
+
+    _pairs(tmp_path / "sim", rng)
+    base = tmp_path / "base.safetensors"
+    save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+    config = HeadTrainingConfig(features=("net_logit", "rate_8", "polarity"), hidden=(8,),
+                                epochs=20, batch_size=256, per_window=500)  # fmt: skip
+    train_head([tmp_path / "sim"], base, tmp_path / "head", config, progress=False)
+    trained = tmp_path / "head" / "model.safetensors"
+    _pairs(tmp_path / "real", rng)
+    events, _, size, *_ = read_sequence(tmp_path / "real" / "test" / "s0.h5")
+    rec = tmp_path / "rec.h5"
+    write_events(rec, events, size)
+    lights = tmp_path / "rec.json"  # a light over the whole left half
+    save_lights(lights, Lights((LightSource.polygon([(0, 0), (23.5, 0), (23.5, 31.5),
+                                                     (0, 31.5)]),)), sensor_size=size)  # fmt: skip
+    left = events["x"] < 24
+
+    def left_kept(weights) -> float:
+        out = deflare(events, size, "model", weights=weights)
+        return float((out["x"] < 24).sum() / left.sum())
+
+    out = tmp_path / "tuned"
+    args = ["tune-head", str(trained), str(tmp_path / "sim"), "--real", f"{rec}:{lights}",
+            "--out", str(out), "--real-weight", "4", "--epochs", "30", "--lr", "1e-2",
+            "--keep-threshold", "0.5", "--no-progress"]  # fmt: skip
+    assert main(args) == 0
+    before, after = left_kept(trained), left_kept(out / "model.safetensors")
+    assert before < 0.1 and after > 0.9
+    card = read_card(out / "model.safetensors")
+    summary = json.loads((out / "tune.json").read_text())
+    assert card.keep_threshold == summary["keep_threshold"] == 0.5
+    assert summary["threshold_chosen_on"] == "given"
+    assert summary["recordings"]["rec"]["light"] == int(left.sum())
+    assert card.head == read_card(trained).head  # the layout unchanged
+    cached = sorted(p.name for p in out.glob("*.npz"))
+    assert len(cached) == 3  # the two splits' rows and the recording's
+    # without a threshold it is chosen on the test splits; the rerun reads the cached rows
+    assert main(args[:-3] + ["--no-progress"]) == 0
+    summary = json.loads((out / "tune.json").read_text())
+    assert read_card(out / "model.safetensors").keep_threshold == summary["simulated_threshold"]
+    assert sorted(p.name for p in out.glob("*.npz")) == cached
+
+
+def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
+    assert main(["tune-head", "learned", str(tmp_path), "--out", str(tmp_path / "r")]) == 1
+    assert "--real" in capsys.readouterr().err
+    rec = tmp_path / "r.h5"
+    write_events(rec, make_events([0, 1], [1, 2], [1, 2], [1, 0]), (8, 8))
+    assert main(["tune-head", "night", str(tmp_path), "--real", str(rec),
+                 "--out", str(tmp_path / "r")]) == 1  # fmt: skip
+    assert "no keep head" in capsys.readouterr().err
+    with pytest.raises(EdeflareError, match="real_weight"):
+        TuningConfig(real_weight=0.0)
+    with pytest.raises(EdeflareError, match="keep_threshold"):
+        tune_head(bundled_weights("learned"), [tmp_path], [("r", None, (8, 8), None)],
+                  tmp_path / "r", keep_threshold=1.5)  # fmt: skip
