@@ -54,6 +54,7 @@ from PIL import Image
 from edeflare import list_methods
 from edeflare.eval.score import classify_events, score_events
 from edeflare.events import EVENT_DTYPE, make_events, sort_events
+from edeflare.io import write_events
 from edeflare.lights import load_lights
 from edeflare.methods import deflare
 
@@ -135,10 +136,21 @@ def main() -> None:
         action="store_true",
         help="also the previous default eflare (3 minutes a case on 2 cores)",
     )
+    parser.add_argument(
+        "--write",
+        type=Path,
+        metavar="OUT",
+        help="only write the window (core 4, the one the targets score) to OUT (any event "
+        "format), e.g. for edeflare tune-head --real OUT:benchmarks/reference_window_lights.json",
+    )
     add_model_option(parser)
     args = parser.parse_args()
     if not PICTURE.is_file():
         raise SystemExit(f"{PICTURE} is missing: the reference picture is needed")
+    if args.write is not None:
+        write_events(args.write, reference_window(4), SENSOR)
+        print(f"wrote {args.write}")
+        return
     lights = load_lights(LIGHTS, SENSOR)
     rows = []
     for core in args.cores:
