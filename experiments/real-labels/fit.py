@@ -4,8 +4,10 @@ recordings' regions, each recording held out of the fit that scores it (README.m
 Steps (each cached in RUN, so a rerun after a kill goes on)::
 
     python experiments/real-labels/fit.py rows RUN --train TRAIN --faery FAERY_DATA
-    python experiments/real-labels/fit.py loo RUN          # nine held-out fits, scored
-    python experiments/real-labels/fit.py all RUN OUT.safetensors   # the fit on all nine
+    python experiments/real-labels/fit.py loo RUN          # arm 1: nine held-out fits, scored
+    python experiments/real-labels/fit.py nested RUN [--part I/N]  # arm 2: the nested choice
+
+The fits are ``edeflare tune-head``'s (:mod:`edeflare.models.head_tuning`) on these rows.
 
 ``TRAIN``: ``edeflare simulate TRAIN --recipe eflare-train --shard 0/3``; ``FAERY_DATA``:
 faery 0.7.1's ``tests/data`` (``benchmarks/night_recording.py``).
@@ -14,53 +16,53 @@ faery 0.7.1's ``tests/data`` (``benchmarks/night_recording.py``).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
-import torch
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1] / "benchmarks"))
 
-from edeflare.eval.score import classify_events, combined_score  # noqa: E402
+from edeflare.eval.score import combined_score  # noqa: E402
 from edeflare.io import read_events  # noqa: E402
 from edeflare.io.sequence import list_sequences  # noqa: E402
 from edeflare.lights import Lights, bundled_lights, load_lights  # noqa: E402
 from edeflare.models.event_head import head_logits  # noqa: E402
 from edeflare.models.head_training import (  # noqa: E402
-    LN3,
     HeadTrainingConfig,
     _group,
     choose_threshold,
     collect_features,
     context_columns,
-    loss_weights,
+)
+from edeflare.models.head_tuning import DELAYS_US as DELAYS  # noqa: E402
+from edeflare.models.head_tuning import (  # noqa: E402
+    REGIONS,
+    LabelledRecording,
+    TuningConfig,
+    fit_members,
+    recording_inputs,
+    region_labels,
 )
 from edeflare.models.infer import ModelDeflarer, bundled_weights  # noqa: E402
 from edeflare.models.mask_kernels import keep_logit_threshold  # noqa: E402
-from edeflare.models.weights import load_model, read_card, save_model  # noqa: E402
+from edeflare.models.weights import load_model, read_card  # noqa: E402
 
 PHASES = 4
-DELAYS = (0, 5_000, 10_000, 15_000)
-"""The windowings the scores run at four phases with a 5 ms second view (20 ms windows)."""
-PER_REGION = 50_000
-REGIONS = ("unlabelled", "light", "flare", "scene")
-EPOCHS, LR, BATCH = 3, 1e-3, 4_096
+"""The windowings (DELAYS) are those the scores run at four phases with a 5 ms second view."""
 
 
-def real_recordings(faery: Path | None) -> list[tuple[str, np.ndarray, tuple[int, int], Lights | None]]:
+def real_recordings(faery: Path | None) -> list[tuple[str, np.ndarray, tuple, Lights | None]]:
     """The nine real recordings the targets score: (name, events, sensor, lights or None)."""
+    from _common import REAL
     from flare_targets import NO_LIGHT, RECORDINGS
     from night_recording import HERE as BENCH
     from night_recording import SCENES, faery_file
     from reference_window import LIGHTS as WINDOW_LIGHTS
     from reference_window import SENSOR, reference_window
-
-    from _common import REAL
 
     out = []
     for rec in RECORDINGS:
@@ -71,7 +73,8 @@ def real_recordings(faery: Path | None) -> list[tuple[str, np.ndarray, tuple[int
         r = read_events(faery_file(faery / "evt3.raw"))
         lights = load_lights(BENCH / "night_recording_lights.json", (1280, 720))
         out.append(("night_recording", r.events, r.sensor_size, lights))
-    out.append(("reference_window", reference_window(4), SENSOR, load_lights(WINDOW_LIGHTS, SENSOR)))
+    window = load_lights(WINDOW_LIGHTS, SENSOR)
+    out.append(("reference_window", reference_window(4), SENSOR, window))
     paths = [REAL / rec for rec in NO_LIGHT]
     if faery is not None:
         paths += [faery_file(faery / name, name) for name in SCENES]
@@ -79,41 +82,6 @@ def real_recordings(faery: Path | None) -> list[tuple[str, np.ndarray, tuple[int
         r = read_events(path)
         out.append((path.name.split(".")[0], r.events, r.sensor_size, None))
     return out
-
-
-def head_columns(deflarer: ModelDeflarer, events: np.ndarray, size) -> np.ndarray:
-    """Every event's head inputs in each windowing of DELAYS: (delays, n, columns)."""
-    w = deflarer.window_us
-    t = events["t"].astype(np.int64)
-    out = None
-    for v, delay in enumerate(DELAYS):
-        i, batch, spans = 0, [], []
-        while i < events.size:  # the windows of TwoViewStreamer's view (rule_terms' loop)
-            start = (int(t[i]) + delay) // w * w - delay
-            k = int(np.searchsorted(t, start + w, side="left"))
-            batch.append((start, events[i:k]))
-            spans.append((i, k))
-            i = k
-        for lo in range(0, len(batch), 8):
-            cols = deflarer.head_inputs(batch[lo : lo + 8], size)
-            for (a, b), c in zip(spans[lo : lo + 8], cols, strict=True):
-                if out is None:
-                    out = np.empty((len(DELAYS), events.size, c.shape[1]), np.float32)
-                out[v, a:b] = c
-    return out
-
-
-def region_codes(events, size, lights: Lights | None) -> np.ndarray:
-    """0 unlabelled, 1 light (keep), 2 flare (remove), 3 scene (keep)."""
-    if lights is None:
-        return np.full(events.size, 3, np.int8)
-    r = classify_events(events, lights, size)
-    code = np.zeros(events.size, np.int8)
-    if lights.score_background:
-        code[r.background] = 3
-    code[r.flare] = 2
-    code[r.light] = 1
-    return code
 
 
 def cmd_rows(args) -> None:
@@ -124,8 +92,8 @@ def cmd_rows(args) -> None:
         path = run / f"real-{name}.npz"
         if path.is_file():
             continue
-        cols = head_columns(learned, events, size)
-        code = region_codes(events, size, lights)
+        cols = recording_inputs(learned, events, size, DELAYS)
+        code = region_labels(events, size, lights)
         # checked: these columns give `learned`'s own logits
         part = events[: min(events.size, 20_000)]
         base = learned.rule_terms(part, size, DELAYS).base
@@ -155,8 +123,9 @@ def cmd_rows(args) -> None:
             cols = context_columns(model.head, data)
             groups = np.array([_group([str(f) for f in files], int(s)) for s in data["source"]])
             sets[split] = (cols, data["y"], data["light"], data["source"], groups)
+        keys = ("cols", "y", "light", "source", "group")
         np.savez(sim, **{f"{s}_{k}": v for s, parts in sets.items()
-                         for k, v in zip(("cols", "y", "light", "source", "group"), parts)})  # fmt: skip
+                         for k, v in zip(keys, parts, strict=True)})  # fmt: skip
 
 
 def load_rows(run: Path):
@@ -169,59 +138,15 @@ def load_rows(run: Path):
     return sim, real
 
 
-def training_rows(sim, real, names, alpha: float = 1.0):
-    """Rows, labels and weights: the simulated rows with train-head's weights (mean 1),
-    the real ones in all as much, each recording alike, each labelled region alike."""
-    x = [sim["train_cols"]]
-    y = [sim["train_y"]]
-    w = [loss_weights(sim["train_y"], HeadTrainingConfig()).numpy()]
-    total = alpha * float(w[0].sum())
-    rng = np.random.default_rng(0)
-    for name in names:
-        cols, code, _ = real[name]
-        present = [c for c in (1, 2, 3) if (code == c).any()]
-        for c in present:
-            idx = np.flatnonzero(code == c)
-            # drawn across the windowings: (delay, event)
-            pick = rng.choice(idx.size * len(DELAYS), min(PER_REGION, idx.size * len(DELAYS)),
-                              replace=False)  # fmt: skip
-            d, e = pick // idx.size, idx[pick % idx.size]
-            x.append(cols[d, e])
-            y.append(np.full(pick.size, c != 2))
-            w.append(np.full(pick.size, total / len(names) / len(present) / pick.size, np.float32))
-    return np.concatenate(x), np.concatenate(y), np.concatenate(w)
-
-
-def fit(sim, real, names, alpha: float = 1.0, seed_base: int = 0):
-    """`learned`'s head with its three perceptrons fitted further on these rows."""
+def fit(sim, real, names, alpha: float = 1.0):
+    """`learned`'s head with its three perceptrons fitted further on these rows
+    (:func:`~edeflare.models.head_tuning.fit_members`, as ``edeflare tune-head``), and the
+    threshold its simulated validation rows choose."""
     model, card = load_model(bundled_weights("learned"))
-    head = model.head
-    x, y, w = training_rows(sim, real, names, alpha)
-    xt, yt, wt = torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(w)
-    n = len(head.feature_names)
-    k = head.context["channels"]
-    for i, member in enumerate(head.members):
-        torch.manual_seed(seed_base + i)
-        cols = torch.cat([xt[:, :n], xt[:, n + i * k : n + (i + 1) * k]], 1)
-        params = list(member.layers.parameters())
-        steps = EPOCHS * -(-len(yt) // BATCH)
-        opt = torch.optim.Adam(params, lr=LR)
-        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=LR, total_steps=steps)
-        gen = torch.Generator().manual_seed(seed_base + i)
-        member.train()
-        for _ in range(EPOCHS):
-            order = torch.randperm(len(yt), generator=gen)
-            for lo in range(0, len(yt), BATCH):
-                b = order[lo : lo + BATCH]
-                loss = torch.nn.functional.binary_cross_entropy_with_logits(
-                    member(cols[b]) + LN3, yt[b], weight=wt[b]
-                )
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                sched.step()
-        member.eval()
-    params = head.numpy_params()
+    recordings = [LabelledRecording(n, real[n][0], real[n][1]) for n in names]
+    fit_members(model.head, sim["train_cols"], sim["train_y"], recordings,
+                TuningConfig(real_weight=alpha))  # fmt: skip
+    params = model.head.numpy_params()
     threshold, table = choose_threshold(head_logits(params, sim["test_cols"]), sim["test_y"],
                                         sim["test_group"])  # fmt: skip
     return model, card, params, threshold, table
@@ -280,8 +205,8 @@ def cmd_loo(args) -> None:
             }  # fmt: skip
             out_path.write_text(json.dumps(results, indent=1) + "\n")
         r = results[held]
-        print(f"{held:32s} thr {r['threshold']:.2f}  held out {r['held_out']}  learned {r['learned']}",
-              flush=True)
+        print(f"{held:32s} thr {r['threshold']:.2f}  held out {r['held_out']}  "
+              f"learned {r['learned']}", flush=True)  # fmt: skip
 
 
 ALPHAS = (0.1, 0.3, 1.0)
@@ -311,8 +236,12 @@ def cmd_nested(args) -> None:
         if key in cache or n % parts != part:
             continue
         _, _, params, sim_thr, _ = fit(sim, real, [r for r in names if r not in out], alpha)
-        cache[key] = {"sim_threshold": sim_thr, "scores": {
-            r: [value(v) for v in scores(real[r], params, THRESHOLDS, r in LIT)] for r in out}}
+        cache[key] = {
+            "sim_threshold": sim_thr,
+            "scores": {
+                r: [value(v) for v in scores(real[r], params, THRESHOLDS, r in LIT)] for r in out
+            },
+        }
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps(cache) + "\n")
         tmp.replace(path)
@@ -344,25 +273,6 @@ def cmd_nested(args) -> None:
     (run / "choice.json").write_text(json.dumps(result, indent=1) + "\n")
 
 
-def cmd_all(args) -> None:
-    run = Path(args.run)
-    sim, real = load_rows(run)
-    model, card, params, thr, table = fit(sim, real, list(real))
-    card = dataclasses.replace(
-        card, keep_threshold=thr,
-        metrics={"head_validation_score": max(r["score"] for r in table)},
-        command=card.command + " && python experiments/real-labels/fit.py rows RUN --train "
-        "TRAIN --faery FAERY && python experiments/real-labels/fit.py all RUN OUT",
-    )  # fmt: skip
-    save_model(args.out, model, card)
-    insample = {name: score(real[name], params, thr, name in LIT) for name in real}
-    (run / "all.json").write_text(json.dumps({"threshold": thr, "table": table,
-                                              "in_sample": insample}, indent=1) + "\n")  # fmt: skip
-    print("threshold", thr)
-    for name, s in insample.items():
-        print(f"{name:32s} {s}")
-
-
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -375,11 +285,8 @@ def main() -> None:
     ne = sub.add_parser("nested")
     ne.add_argument("run")
     ne.add_argument("--part", default="0/1", help="I/N: the fits with index %% N == I")
-    a = sub.add_parser("all")
-    a.add_argument("run")
-    a.add_argument("out")
     args = p.parse_args()
-    {"rows": cmd_rows, "loo": cmd_loo, "nested": cmd_nested, "all": cmd_all}[args.cmd](args)
+    {"rows": cmd_rows, "loo": cmd_loo, "nested": cmd_nested}[args.cmd](args)
 
 
 if __name__ == "__main__":

@@ -77,7 +77,8 @@ def test_fitting_members_learns_the_real_labels_and_leaves_the_contexts_alone(rn
     codes = np.where(inputs[0, :, 1] > 0, 2, 3).astype(np.int8)  # flare where support > 0
     inputs[1, :, 1] = inputs[0, :, 1]
     rec = LabelledRecording("r", inputs, codes)
-    fit_members(head, sim_x, sim_y, [rec], TuningConfig(real_weight=4.0, epochs=20, lr=1e-2, batch_size=256))
+    config = TuningConfig(real_weight=4.0, epochs=20, lr=1e-2, batch_size=256)
+    fit_members(head, sim_x, sim_y, [rec], config)
     logits = head_logits(head.numpy_params(), inputs[0])
     assert np.mean((logits > np.median(logits)) == (codes == 3)) > 0.9
     after = head.state_dict()
@@ -152,7 +153,7 @@ def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng)
     cached = sorted(p.name for p in out.glob("*.npz"))
     assert len(cached) == 3  # the two splits' rows and the recording's
     # without a threshold it is chosen on the test splits; the rerun reads the cached rows
-    assert main(args[:-3] + ["--no-progress"]) == 0
+    assert main([*args[:-3], "--no-progress"]) == 0
     summary = json.loads((out / "tune.json").read_text())
     assert read_card(out / "model.safetensors").keep_threshold == summary["simulated_threshold"]
     assert sorted(p.name for p in out.glob("*.npz")) == cached

@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     from ..lights import load_lights
     from ..models.head_tuning import TuningConfig, tune_head
     from ..models.infer import resolve_weights
+
     if not args.real:
         raise ParameterError("give at least one --real recording")
     config = TuningConfig(
