@@ -41,7 +41,7 @@ import hashlib
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +55,7 @@ from ..io._atomic import atomic_path
 from ..io.sequence import file_sha256
 from ..lights import Lights
 from .event_head import EventHead, EventHeadEnsemble, head_logits
-from .head_training import LN3, HeadTrainingConfig, loss_weights
+from .head_training import LN3, HeadTrainingConfig, _optimise, loss_weights
 
 __all__ = [
     "DELAYS_US",
@@ -203,6 +203,8 @@ def fit_members(
     sim_y: np.ndarray,
     recordings: Sequence[LabelledRecording],
     config: TuningConfig,
+    *,
+    progress: bool = False,
 ) -> EventHead | EventHeadEnsemble:
     """``head``'s perceptrons fitted further (in place) on the simulated rows ``sim_x``
     (every input column, the context's included) with labels ``sim_y`` and on the
@@ -223,26 +225,24 @@ def fit_members(
     n = len(head.feature_names)
     k = head.context["channels"] if head.context else 0
     size = config.batch_size
+    steps = config.epochs * -(-len(yt) // size)
     for i, member in enumerate(members):
         torch.manual_seed(config.seed + i)
         cols = torch.cat([xt[:, :n], xt[:, n + i * k : n + (i + 1) * k]], 1) if k else xt
-        steps = config.epochs * -(-len(yt) // size)
-        opt = torch.optim.Adam(member.layers.parameters(), lr=config.lr)
-        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=steps)
         gen = torch.Generator().manual_seed(config.seed + i)
-        member.train()
-        for _ in range(config.epochs):
-            order = torch.randperm(len(yt), generator=gen)
-            for lo in range(0, len(yt), size):
-                b = order[lo : lo + size]
-                loss = torch.nn.functional.binary_cross_entropy_with_logits(
-                    member(cols[b]) + LN3, yt[b], weight=wt[b]
-                )
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                sched.step()
-        member.eval()
+
+        def epochs(gen: torch.Generator = gen) -> Iterator[Iterator[torch.Tensor]]:
+            for _ in range(config.epochs):
+                order = torch.randperm(len(yt), generator=gen)
+                yield (order[lo : lo + size] for lo in range(0, len(yt), size))
+
+        def loss(b: torch.Tensor, member: EventHead = member, cols: torch.Tensor = cols):
+            return torch.nn.functional.binary_cross_entropy_with_logits(
+                member(cols[b]) + LN3, yt[b], weight=wt[b]
+            )
+
+        # only the perceptron learns: the context network is not run, so it has no gradient
+        _optimise(member, HeadTrainingConfig(lr=config.lr), steps, epochs(), loss, progress)
     return head
 
 
@@ -318,7 +318,7 @@ def tune_head(
                 with open(tmp, "wb") as f:
                     np.savez(f, inputs=inputs, codes=codes)
         labelled.append(LabelledRecording(name, inputs, codes))
-    fit_members(head, columns["train"], train["y"], labelled, config)
+    fit_members(head, columns["train"], train["y"], labelled, config, progress=progress)
     params = head.numpy_params()
     groups = np.array([_group(files_of["test"], int(i)) for i in val["source"]])
     sim_threshold, table = choose_threshold(head_logits(params, columns["test"]), val["y"], groups)
