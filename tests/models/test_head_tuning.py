@@ -169,6 +169,11 @@ def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
     assert "no keep head" in capsys.readouterr().err
     with pytest.raises(EdeflareError, match="real_weight"):
         TuningConfig(real_weight=0.0)
+    empty = tmp_path / "empty.h5"
+    write_events(empty, make_events([], [], [], []), (8, 8))
+    assert main(["tune-head", "learned", str(tmp_path), "--real", str(empty),
+                 "--out", str(tmp_path / "r")]) == 1  # fmt: skip
+    assert "empty: the recording holds no events" in capsys.readouterr().err
     with pytest.raises(EdeflareError, match="keep_threshold"):
         tune_head(bundled_weights("learned"), [tmp_path], [("r", None, (8, 8), None)],
                   tmp_path / "r", keep_threshold=1.5)  # fmt: skip

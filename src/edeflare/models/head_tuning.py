@@ -290,6 +290,9 @@ def tune_head(
     names = [name for name, *_ in recordings]
     if len(set(names)) != len(names):
         raise EdeflareError(f"recordings need distinct names, got {names}")
+    for name, events, *_ in recordings:
+        if events is None or events.size == 0:
+            raise EdeflareError(f"{name}: the recording holds no events to learn from")
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
     folders = [part for d in data for part in dataset_folders(d)]
