@@ -150,6 +150,9 @@ def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng)
     assert summary["threshold_chosen_on"] == "given"
     assert summary["recordings"]["rec"]["light"] == int(left.sum())
     assert card.head == read_card(trained).head  # the layout unchanged
+    # its recipe: the base's command, then this one
+    assert card.command.startswith(read_card(trained).command + " && edeflare ")
+    assert card.data.endswith(f"tuned on {tmp_path / 'sim'} rec")
     cached = sorted(p.name for p in out.glob("*.npz"))
     assert len(cached) == 3  # the two splits' rows and the recording's
     # without a threshold it is chosen on the test splits; the rerun reads the cached rows

@@ -329,8 +329,12 @@ def tune_head(
     card = dataclasses.replace(
         card,
         keep_threshold=threshold,
-        command=command or f"tune_head({str(weights)!r}, {[str(d) for d in data]!r}, ...)",
-        data=" ".join([*(str(d) for d in folders), *names]),
+        # the base's own recipe first: the tuned model is rebuilt from it
+        command=(card.command + " && " if card.command else "")
+        + (command or f"tune_head({str(weights)!r}, {[str(d) for d in data]!r}, ...)"),
+        data=(card.data + "; " if card.data else "")
+        + "tuned on "
+        + " ".join([*(str(d) for d in folders), *names]),
         metrics={"head_validation_score": max(r["score"] for r in table)},
         notes=(card.notes + "; " if card.notes else "")
         + f"its perceptrons fitted further on annotated real recordings ({', '.join(names)})",
