@@ -337,7 +337,12 @@ def tune_head(
         + " ".join([*(str(d) for d in folders), *names]),
         metrics={"head_validation_score": max(r["score"] for r in table)},
         notes=(card.notes + "; " if card.notes else "")
-        + f"its perceptrons fitted further on annotated real recordings ({', '.join(names)})",
+        + f"its perceptrons fitted further on annotated real recordings ({', '.join(names)}), "
+        + (
+            "its keep threshold given"
+            if keep_threshold is not None
+            else "its keep threshold chosen on the simulated test splits"
+        ),
     )
     save_model(run / "model.safetensors", model, card)
     summary = {
