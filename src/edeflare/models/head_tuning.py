@@ -152,6 +152,9 @@ class TuningConfig:
     """The real rows' total weight, times the simulated rows'."""
     per_region: int = 50_000
     """Rows drawn per labelled region and recording (over its windowings)."""
+    balance_classes: bool = False
+    """Give the real rows' keep class and flare class half of their weight each (each
+    class's rows keep their shares within it), as the simulated rows' classes are."""
     epochs: int = 3
     lr: float = 1e-3
     batch_size: int = 4_096
@@ -180,6 +183,10 @@ def real_rows(
     >>> x, y, w = real_rows([rec], 6.0, TuningConfig())
     >>> x.shape, y.tolist(), np.round(w, 3).tolist()   # 2 windowings x 1 light, x 2 flare
     ((6, 1), [True, True, False, False, False, False], [1.5, 1.5, 0.75, 0.75, 0.75, 0.75])
+    >>> light = LabelledRecording("l", np.zeros((1, 2, 1), np.float32), np.array([1, 1], np.int8))
+    >>> _, y, w = real_rows([rec, light], 6.0, TuningConfig(balance_classes=True))
+    >>> float(w[y].sum()), float(w[~y].sum())     # 3/4 of the weight kept, made even
+    (3.0, 3.0)
     """
     rng = np.random.default_rng(config.seed)
     xs, ys, ws = [], [], []
@@ -194,7 +201,11 @@ def real_rows(
             ys.append(np.full(n, c != 2))
             share = total_weight / len(recordings) / len(present) / n
             ws.append(np.full(n, share, np.float32))
-    return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws)
+    x, y, w = np.concatenate(xs), np.concatenate(ys), np.concatenate(ws)
+    if config.balance_classes and y.any() and not y.all():
+        for c in (False, True):
+            w[y == c] *= np.float32(total_weight / 2 / w[y == c].sum(dtype=np.float64))
+    return x, y, w
 
 
 def fit_members(
