@@ -50,6 +50,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="the real rows' total loss weight, times the simulated rows'",
     )
     p.add_argument(
+        "--balance-classes",
+        action="store_true",
+        help="give the real rows' keep and flare classes half of their weight each (as the "
+        "simulated rows' are); without it, each recording and region weighs alike",
+    )
+    p.add_argument(
         "--per-region", type=int, default=50_000, help="rows drawn per region and recording"
     )
     p.add_argument(
@@ -96,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError("give at least one --real recording")
     config = TuningConfig(
         real_weight=args.real_weight,
+        balance_classes=args.balance_classes,
         per_region=args.per_region,
         epochs=args.epochs,
         lr=args.lr,
