@@ -7,6 +7,7 @@ Steps (each cached in RUN, so a rerun after a kill goes on)::
     python experiments/real-labels/fit.py loo RUN          # arm 1: nine held-out fits, scored
     python experiments/real-labels/fit.py nested RUN [--part I/N]  # arm 2: the nested choice
     python experiments/real-labels/fit.py loo RUN --balance  # arm 3: real classes balanced
+    python experiments/real-labels/fit.py loo RUN --hold     # arm 4: simulation held to learned
 
 The fits are ``edeflare tune-head``'s (:mod:`edeflare.models.head_tuning`) on these rows.
 
@@ -139,14 +140,15 @@ def load_rows(run: Path):
     return sim, real
 
 
-def fit(sim, real, names, alpha: float = 1.0, balance: bool = False):
+def fit(sim, real, names, alpha: float = 1.0, balance: bool = False, hold: bool = False):
     """`learned`'s head with its three perceptrons fitted further on these rows
     (:func:`~edeflare.models.head_tuning.fit_members`, as ``edeflare tune-head``), and the
     threshold its simulated validation rows choose."""
     model, card = load_model(bundled_weights("learned"))
     recordings = [LabelledRecording(n, real[n][0], real[n][1]) for n in names]
     fit_members(model.head, sim["train_cols"], sim["train_y"], recordings,
-                TuningConfig(real_weight=alpha, balance_classes=balance))  # fmt: skip
+                TuningConfig(real_weight=alpha, balance_classes=balance,
+                             hold_simulated=hold))  # fmt: skip
     params = model.head.numpy_params()
     threshold, table = choose_threshold(head_logits(params, sim["test_cols"]), sim["test_y"],
                                         sim["test_group"])  # fmt: skip
@@ -191,13 +193,14 @@ LIT = ("prophesee_gen3_rotating_light", "davis346_flicker_lamps", "night_recordi
 def cmd_loo(args) -> None:
     run = Path(args.run)
     sim, real = load_rows(run)
-    out_path = run / ("loo-balanced.json" if args.balance else "loo.json")
+    out_path = run / ("loo-balanced.json" if args.balance else
+                      "loo-held.json" if args.hold else "loo.json")  # fmt: skip
     results = json.loads(out_path.read_text()) if out_path.is_file() else {}
     learned = ModelDeflarer(bundled_weights("learned"), runtime="torch")
     for held in real:
         if held not in results:
             others = [r for r in real if r != held]
-            _, _, params, thr, _ = fit(sim, real, others, balance=args.balance)
+            _, _, params, thr, _ = fit(sim, real, others, balance=args.balance, hold=args.hold)
             results[held] = {
                 "threshold": thr,
                 "held_out": score(real[held], params, thr, held in LIT),
@@ -284,6 +287,7 @@ def main() -> None:
     lo = sub.add_parser("loo")
     lo.add_argument("run")
     lo.add_argument("--balance", action="store_true", help="arm 3: the real rows' classes balanced")
+    lo.add_argument("--hold", action="store_true", help="arm 4: the simulated rows held to learned")
     ne = sub.add_parser("nested")
     ne.add_argument("run")
     ne.add_argument("--part", default="0/1", help="I/N: the fits with index %% N == I")

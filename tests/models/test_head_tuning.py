@@ -92,6 +92,22 @@ def test_fitting_members_learns_the_real_labels_and_leaves_the_contexts_alone(rn
         fit_members(head, sim_x[:, :5], sim_y, [], TuningConfig())
 
 
+def test_holding_the_simulated_rows_keeps_what_the_head_did_on_them(rng):
+    sim_x = rng.normal(size=(2_000, 6)).astype(np.float32)
+    sim_y = sim_x[:, 0] > 0  # the simulated rows: keep where net_logit > 0
+    inputs = rng.normal(size=(1, 1_000, 6)).astype(np.float32)
+    inputs[..., 1] += 6.0  # real rows elsewhere (their support far larger): keep all
+    rec = LabelledRecording("r", inputs, np.full(1_000, 3, np.int8))
+    before = head_logits(_context_ensemble().numpy_params(), sim_x)
+    moved = {}
+    for hold in (False, True):
+        head = _context_ensemble()
+        config = TuningConfig(epochs=10, lr=1e-2, batch_size=256, hold_simulated=hold)
+        fit_members(head, sim_x, sim_y, [rec], config)
+        moved[hold] = float(np.mean(np.abs(head_logits(head.numpy_params(), sim_x) - before)))
+    assert moved[True] < 0.5 * moved[False]
+
+
 def test_a_recordings_inputs_give_the_models_own_logits(rng):
     d = ModelDeflarer(bundled_weights("learned"), runtime="torch")
     ev = random_events(rng, 3_000, (64, 48), t0=3_000, span_us=50_000)

@@ -56,6 +56,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "simulated rows' are); without it, each recording and region weighs alike",
     )
     p.add_argument(
+        "--hold-simulated",
+        action="store_true",
+        help="on the simulated rows, learn the head's own keep probabilities before the fit "
+        "instead of their labels (keep what it did on simulation)",
+    )
+    p.add_argument(
         "--per-region", type=int, default=50_000, help="rows drawn per region and recording"
     )
     p.add_argument(
@@ -103,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
     config = TuningConfig(
         real_weight=args.real_weight,
         balance_classes=args.balance_classes,
+        hold_simulated=args.hold_simulated,
         per_region=args.per_region,
         epochs=args.epochs,
         lr=args.lr,

@@ -152,6 +152,10 @@ class TuningConfig:
     """The real rows' total weight, times the simulated rows'."""
     per_region: int = 50_000
     """Rows drawn per labelled region and recording (over its windowings)."""
+    hold_simulated: bool = False
+    """On the simulated rows, learn each member's own keep probabilities before the fit
+    instead of their labels (the labels still weigh the classes): the head keeps what it
+    did on simulation and learns the real rows' labels."""
     balance_classes: bool = False
     """Give the real rows' keep class and flare class half of their weight each (each
     class's rows keep their shares within it), as the simulated rows' classes are."""
@@ -247,9 +251,16 @@ def fit_members(
                 order = torch.randperm(len(yt), generator=gen)
                 yield (order[lo : lo + size] for lo in range(0, len(yt), size))
 
-        def loss(b: torch.Tensor, member: EventHead = member, cols: torch.Tensor = cols):
+        target = yt
+        if config.hold_simulated:  # its own keep probabilities on the simulated rows
+            with torch.no_grad():
+                own = torch.sigmoid(member(cols[: len(sim_y)]) + LN3)
+            target = torch.cat([own, yt[len(sim_y) :]])
+
+        def loss(b: torch.Tensor, member: EventHead = member, cols: torch.Tensor = cols,
+                 target: torch.Tensor = target) -> torch.Tensor:  # fmt: skip
             return torch.nn.functional.binary_cross_entropy_with_logits(
-                member(cols[b]) + LN3, yt[b], weight=wt[b]
+                member(cols[b]) + LN3, target[b], weight=wt[b]
             )
 
         # only the perceptron learns: the context network is not run, so it has no gradient
