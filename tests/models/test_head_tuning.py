@@ -56,7 +56,7 @@ def test_real_rows_weigh_each_recording_and_each_region_alike():
     assert w.sum() == pytest.approx(12.0)
     assert [round(float(w[a:b].sum()), 4) for a, b in ((0, 20), (20, 30), (30, 50), (50, 70))] == [
         2.0, 2.0, 2.0, 6.0]  # fmt: skip
-    # balanced: the 10 flare rows weigh as much as the 60 kept (10 of the 12 were on them)
+    # balanced: the 10 flare rows weigh as much as the 60 kept ones (which had 10 of the 12)
     _, yb, wb = real_rows([lit, dark], 12.0, TuningConfig(per_region=20, balance_classes=True))
     assert (yb == y).all() and wb.sum() == pytest.approx(12.0)
     assert wb[~yb].sum() == pytest.approx(6.0) and wb[yb].sum() == pytest.approx(6.0)
