@@ -193,6 +193,10 @@ def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
     assert "no keep head" in capsys.readouterr().err
     with pytest.raises(EdeflareError, match="real_weight"):
         TuningConfig(real_weight=0.0)
+    with pytest.raises(EdeflareError, match="lr must be a positive number, got nan"):
+        TuningConfig(lr=float("nan"))
+    with pytest.raises(EdeflareError, match="epochs must be a positive integer"):
+        TuningConfig(epochs=0)
     empty = tmp_path / "empty.h5"
     write_events(empty, make_events([], [], [], []), (8, 8))
     assert main(["tune-head", "learned", str(tmp_path), "--real", str(empty),

@@ -165,9 +165,10 @@ class TuningConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        value = self.real_weight
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise EdeflareError(f"real_weight must be a positive number, got {value!r}")
+        for name in ("real_weight", "lr"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise EdeflareError(f"{name} must be a positive number, got {value!r}")
         for name in ("per_region", "epochs", "batch_size"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
