@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -28,7 +27,6 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1] / "benchmarks"))
 
-from edeflare.eval.score import combined_score  # noqa: E402
 from edeflare.io import read_events  # noqa: E402
 from edeflare.io.sequence import list_sequences  # noqa: E402
 from edeflare.lights import Lights, bundled_lights, load_lights  # noqa: E402
@@ -50,7 +48,6 @@ from edeflare.models.head_tuning import (  # noqa: E402
     region_labels,
 )
 from edeflare.models.infer import ModelDeflarer, bundled_weights  # noqa: E402
-from edeflare.models.mask_kernels import keep_logit_threshold  # noqa: E402
 from edeflare.models.weights import load_model, read_card  # noqa: E402
 
 PHASES = 4
@@ -162,28 +159,17 @@ def score(real_item, params, threshold: float, lights_scored: bool) -> dict[str,
 
 def scores(real_item, params, thresholds, lights_scored: bool) -> list[dict[str, float]]:
     """:func:`score` at each of ``thresholds`` (the head run once)."""
+    from _held_out import measure_phases, phase_views
+
     cols, code, _ = real_item
-    logits = np.stack([head_logits(params, c) for c in cols])
-    return [_score(logits, code, t, lights_scored) for t in thresholds]
-
-
-def _score(logits, code, threshold: float, lights_scored: bool) -> dict[str, float]:
-    w = 20_000
-    views = [(k * w // PHASES % w, (k * w // PHASES + 5_000) % w) for k in range(PHASES)]
-    cut = keep_logit_threshold(threshold)
-    rows = []
-    for a, b in views:
-        kept = (logits[DELAYS.index(a)] + logits[DELAYS.index(b)]) / 2 > cut
-        if not lights_scored:
-            rows.append((math.nan, math.nan, math.nan, kept.mean()))
-            continue
-        flare, light, back = code == 2, code == 1, code == 3
-        removed = 1 - kept[flare].mean() if flare.any() else math.nan
-        lit = kept[light].mean() if light.any() else math.nan
-        scene = kept[back].mean() if back.any() else math.nan
-        rows.append((removed, lit, scene, combined_score(removed, lit, scene)))
-    m = np.nanmean(np.array(rows, float), axis=0) if rows else [math.nan] * 4
-    return dict(zip(("removed", "light", "scene", "combined"), map(float, m), strict=True))
+    logits = [head_logits(params, c) for c in cols]
+    delays, views = phase_views(20_000, 5_000, PHASES)
+    assert tuple(delays) == DELAYS
+    phases = [(logits[a] + logits[b]) / np.float32(2) for a, b in views]
+    regions = (code == 2, code == 1, code == 3) if lights_scored else None
+    table = measure_phases(phases, regions, thresholds)
+    keys = ("removed", "light", "scene", "combined")  # _held_out.TERMS
+    return [dict(zip(keys, map(float, row), strict=True)) for row in table]
 
 
 LIT = ("prophesee_gen3_rotating_light", "davis346_flicker_lamps", "night_recording",

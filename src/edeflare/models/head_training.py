@@ -74,6 +74,7 @@ __all__ = [
     "keep_labels",
     "load_teacher",
     "loss_weights",
+    "shuffled_batches",
     "teacher_targets",
     "train_head",
 ]
@@ -484,18 +485,31 @@ def fit_head(
     gen = torch.Generator().manual_seed(config.seed)
     size = config.batch_size
 
-    def epochs() -> Iterator[Iterator[torch.Tensor]]:
-        for _ in range(config.epochs):
-            order = torch.randperm(len(yt), generator=gen)
-            yield (order[lo : lo + size] for lo in range(0, len(yt), size))
-
     def loss(b: torch.Tensor) -> torch.Tensor:
         return torch.nn.functional.binary_cross_entropy_with_logits(
             head(xt[b]) + LN3, yt[b], weight=weight[b]
         )
 
     steps = config.epochs * max(1, -(-len(yt) // size))
-    return _optimise(head, config, steps, epochs(), loss, progress)
+    return _optimise(head, config, steps, shuffled_batches(len(yt), size, config.epochs, gen),
+                     loss, progress)  # fmt: skip
+
+
+def shuffled_batches(
+    n: int, size: int, epochs: int, gen: torch.Generator
+) -> Iterator[Iterator[torch.Tensor]]:
+    """Each epoch's batches of row indices: ``0 .. n-1`` shuffled by ``gen`` (drawn as the
+    epoch starts), cut into batches of ``size``.
+
+    Examples
+    --------
+    >>> gen = torch.Generator().manual_seed(0)
+    >>> [[b.tolist() for b in e] for e in shuffled_batches(3, 2, 1, gen)]
+    [[[2, 0], [1]]]
+    """
+    for _ in range(epochs):
+        order = torch.randperm(n, generator=gen)
+        yield (order[lo : lo + size] for lo in range(0, n, size))
 
 
 def _optimise(

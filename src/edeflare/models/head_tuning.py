@@ -41,7 +41,7 @@ import hashlib
 import json
 import math
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +55,8 @@ from ..io._atomic import atomic_path
 from ..io.sequence import file_sha256
 from ..lights import Lights
 from .event_head import EventHead, EventHeadEnsemble, head_logits
-from .head_training import LN3, HeadTrainingConfig, _optimise, loss_weights
+from .head_training import LN3, HeadTrainingConfig, _optimise, loss_weights, shuffled_batches
+from .two_view import view_windows
 
 __all__ = [
     "DELAYS_US",
@@ -105,17 +106,12 @@ def recording_inputs(
 
     ``deflarer``: a :class:`~edeflare.models.infer.ModelDeflarer` with a keep head.
     """
-    w = deflarer.window_us
     t = events["t"].astype(np.int64)
     out: np.ndarray | None = None
     for v, delay in enumerate(delays_us):
-        i, batch, spans = 0, [], []
-        while i < events.size:  # each window of this windowing
-            start = (int(t[i]) + int(delay)) // w * w - int(delay)
-            k = int(np.searchsorted(t, start + w, side="left"))
-            batch.append((start, events[i:k]))
-            spans.append((i, k))
-            i = k
+        windows = view_windows(t, deflarer.window_us, int(delay))
+        batch = [(start, events[i:k]) for start, i, k in windows]
+        spans = [(i, k) for _, i, k in windows]
         for lo in range(0, len(batch), 8):
             columns = deflarer.head_inputs(batch[lo : lo + 8], sensor_size)
             for (a, b), c in zip(spans[lo : lo + 8], columns, strict=True):
@@ -237,21 +233,13 @@ def fit_members(
         raise EdeflareError(f"rows have {x.shape[1]} columns, the head reads {head.columns}")
     xt, yt = torch.from_numpy(np.ascontiguousarray(x)), torch.from_numpy(y.astype(np.float32))
     wt = torch.from_numpy(w)
-    members = list(head.members) if isinstance(head, EventHeadEnsemble) else [head]
-    n = len(head.feature_names)
-    k = head.context["channels"] if head.context else 0
-    size = config.batch_size
-    steps = config.epochs * -(-len(yt) // size)
+    ensemble = isinstance(head, EventHeadEnsemble)
+    members = list(head.members) if ensemble else [head]
+    steps = config.epochs * -(-len(yt) // config.batch_size)
     for i, member in enumerate(members):
         torch.manual_seed(config.seed + i)
-        cols = torch.cat([xt[:, :n], xt[:, n + i * k : n + (i + 1) * k]], 1) if k else xt
+        cols = head._member_columns(xt, i) if ensemble else xt
         gen = torch.Generator().manual_seed(config.seed + i)
-
-        def epochs(gen: torch.Generator = gen) -> Iterator[Iterator[torch.Tensor]]:
-            for _ in range(config.epochs):
-                order = torch.randperm(len(yt), generator=gen)
-                yield (order[lo : lo + size] for lo in range(0, len(yt), size))
-
         target = yt
         if config.hold_simulated:  # its own keep probabilities on the simulated rows
             with torch.no_grad():
@@ -265,7 +253,8 @@ def fit_members(
             )
 
         # only the perceptron learns: the context network is not run, so it has no gradient
-        _optimise(member, HeadTrainingConfig(lr=config.lr), steps, epochs(), loss, progress)
+        batches = shuffled_batches(len(yt), config.batch_size, config.epochs, gen)
+        _optimise(member, HeadTrainingConfig(lr=config.lr), steps, batches, loss, progress)
     return head
 
 

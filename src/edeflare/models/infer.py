@@ -57,7 +57,7 @@ from .mask_kernels import (
     event_records,
     keep_logit_threshold,
 )
-from .two_view import TwoViewStreamer, check_phase_shift
+from .two_view import TwoViewStreamer, check_phase_shift, view_windows
 from .weights import ModelCard, load_model
 
 __all__ = [
@@ -582,10 +582,7 @@ class ModelDeflarer:
         units = {on: {name: np.zeros_like(base) for name in on} for on in knob_sets()}
         t = np.ascontiguousarray(events["t"]).astype(np.int64)
         for v, delay in enumerate(delays):
-            i = 0
-            while i < events.size:  # the windows of TwoViewStreamer's view
-                start = (int(t[i]) + delay) // w * w - delay
-                k = int(np.searchsorted(t, start + w, side="left"))
+            for start, i, k in view_windows(t, w, delay):  # TwoViewStreamer's windows
                 part = events[i:k]
                 (logit,), (support,) = self._keep_logits(
                     [(start, part)], size, rules=False, support=True
@@ -595,7 +592,6 @@ class ModelDeflarer:
                 for on, per_knob in unit_shifts(self.rules, ctx).items():
                     for name, unit in per_knob.items():
                         units[on][name][v, i:k] = unit
-                i = k
         return RuleTerms(delays, base, units)
 
     def _network_logits(

@@ -24,7 +24,7 @@ from ..events import concat_events, select_events
 from ..methods.base import EMPTY, Streamer
 from .weights import ModelCard
 
-__all__ = ["TwoViewStreamer", "check_phase_shift"]
+__all__ = ["TwoViewStreamer", "check_phase_shift", "view_windows"]
 
 
 def check_phase_shift(phase_shift_us: object, card: ModelCard, where: object) -> int:
@@ -55,6 +55,34 @@ def check_phase_shift(phase_shift_us: object, card: ModelCard, where: object) ->
             "(voxel-to-voxel): give 0"
         )
     return int(phase_shift_us)
+
+
+def view_windows(
+    t: np.ndarray, window_us: int, delay_us: int, until_us: int | None = None
+) -> list[tuple[int, int, int]]:
+    """``(start_us, first, end)`` of each window of sorted timestamps ``t`` in the windowing
+    delayed by ``delay_us`` (windows start at ``k * window_us - delay_us``; only those that
+    hold an event), its events ``t[first:end]``; with ``until_us``, up to the first window
+    that ends after it.
+
+    Examples
+    --------
+    >>> view_windows(np.array([1, 4, 12, 13]), 10, 5)
+    [(-5, 0, 2), (5, 2, 4)]
+    >>> view_windows(np.array([1, 4, 12, 13]), 10, 0, until_us=12)
+    [(0, 0, 2)]
+    """
+    out = []
+    i = 0
+    while i < t.size:
+        start = (int(t[i]) + delay_us) // window_us * window_us - delay_us
+        end = start + window_us
+        if until_us is not None and end > until_us:
+            break
+        k = int(np.searchsorted(t, end, side="left"))
+        out.append((start, i, k))
+        i = k
+    return out
 
 
 @functools.cache
@@ -113,16 +141,7 @@ class TwoViewStreamer(Streamer):
         w, delay = self.window_us, self.delays[view]
         events = self.pending[self.done[view].size :]
         t = np.ascontiguousarray(events["t"])  # searched once per window: no strided copies
-        windows = []
-        i = 0
-        while i < events.size:
-            start = (int(t[i]) + delay) // w * w - delay
-            end = start + w
-            if until_us is not None and end > until_us:
-                break
-            k = int(np.searchsorted(t, end, side="left"))
-            windows.append((start, events[i:k]))
-            i = k
+        windows = [(start, events[i:k]) for start, i, k in view_windows(t, w, delay, until_us)]
         step = self.batch_windows
         return [windows[j : j + step] for j in range(0, len(windows), step)]
 
