@@ -1,5 +1,5 @@
-"""Pictures of arm 1's held-out fits: the night recording and the Gen3 light, each through
-the fit that did not see it, beside the input, `night` and `learned`.
+"""Pictures of arm 1's held-out fits: the night recording, the DAVIS lamps and the Gen3
+light, each through the fit that did not see it, beside the input, `night` and `learned`.
 
     python experiments/real-labels/figure.py RUN FAERY_DATA experiments/real-labels
 
@@ -31,6 +31,8 @@ CASES = {
     # name in the rows: (file, first microseconds de-flared, windows drawn, crop rows, cols)
     "night_recording": ("evt3.raw", 400_000, ((200_000, 100_000),),
                         (slice(60, 620), slice(200, 960))),
+    "davis346_flicker_lamps": ("davis346_flicker_lamps.aedat4", 130_000, ((40_000, 20_000),),
+                               (slice(0, 260), slice(0, 346))),
     "prophesee_gen3_rotating_light": ("prophesee_gen3_rotating_light.raw", 50_000,
                                       ((20_000, 20_000),), (slice(0, 480), slice(0, 640))),
 }  # fmt: skip
