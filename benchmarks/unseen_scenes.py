@@ -18,7 +18,8 @@ f2279db3f405a03f74a1a8fb374d11ac326858041e7222fbc1fa690fe004/evlib-0.1.25.tar.gz
   fast: 0.04 to 3.3 M events/s over 100 ms (shipped by ``event-lads``, MIT, as its "real
   event clip"; a structured ``.npy``, ``t`` in seconds).
 
-Every event is scene: a de-flarer should keep them all (goal, as for the scenes without a
+Neither file is copied into this project; their own terms apply (the RPG dataset's
+besides evlib's). Every event is scene: a de-flarer should keep them all (goal, as for the scenes without a
 light of ``flare_targets.py``: >= 95 %). Each method runs over the whole file with one
 windowing (what ``edeflare deflare`` keeps), and the share it keeps is also given for the
 busiest quarter of the recording's 100 ms bins (``dense``) and the quietest half
