@@ -19,11 +19,12 @@ f2279db3f405a03f74a1a8fb374d11ac326858041e7222fbc1fa690fe004/evlib-0.1.25.tar.gz
   event clip"; a structured ``.npy``, ``t`` in seconds).
 
 Neither file is copied into this project; their own terms apply (the RPG dataset's
-besides evlib's). Every event is scene: a de-flarer should keep them all (goal, as for the scenes without a
-light of ``flare_targets.py``: >= 95 %). Each method runs over the whole file with one
-windowing (what ``edeflare deflare`` keeps), and the share it keeps is also given for the
-busiest quarter of the recording's 100 ms bins (``dense``) and the quietest half
-(``sparse``), so that a method that drops a fast scene, or a still one, shows it.
+besides evlib's). Every event is scene: a de-flarer should keep them all (goal, as for
+the scenes without a light of ``flare_targets.py``: >= 95 %). Each method runs over the
+whole file with one windowing (what ``edeflare deflare`` keeps), and the share it keeps
+is also given for the busiest quarter of the recording's 100 ms bins (``dense``) and the
+quietest half (``sparse``), so that a method that drops a fast scene, or a still one,
+shows it.
 
 Run::
 
