@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace as dataclasses_replace
+
 import numpy as np
 import pytest
 
@@ -62,6 +64,59 @@ def test_scene_sample_is_exactly_the_rendered_video(rng):
         sel = events[events["t"] == t]
         expected = scene.frame(int(t))[sel["y"], sel["x"]]
         np.testing.assert_allclose(got[events["t"] == t], expected, rtol=1e-5)
+
+
+NEAR = SceneConfig(fps=1000.0, near_objects=(1, 1), near_speed_px_per_s=(2000.0, 2000.0))
+
+
+def test_a_near_object_is_a_textured_ellipse_that_swings_in_front_of_the_street():
+    size = (160, 120)
+    street = NightStreet(size, FAST, rng=2)
+    near = NightStreet(size, dataclasses_replace(FAST, near_objects=(1, 1)), rng=2)
+    (obj,) = near.objects
+    # the street behind is drawn as before: the same texture and camera
+    assert np.array_equal(near.texture, street.texture) and near.params == street.params
+    assert 0.3 * 60 <= obj.ay <= 0.8 * 60 and 0.6 * obj.ay <= obj.ax <= obj.ay
+    t = 10_000
+    cx, cy = obj.centre(t)
+    yy, xx = np.mgrid[:120, :160]
+    inside = ((xx - cx) / obj.ax) ** 2 + ((yy - cy) / obj.ay) ** 2 < 0.8
+    outside = ((xx - cx) / obj.ax) ** 2 + ((yy - cy) / obj.ay) ** 2 > 1.2
+    a, b = near.frame(t), street.frame(t)
+    assert np.array_equal(a[outside], b[outside])
+    assert np.mean(a[inside] != b[inside]) > 0.99
+    # its centre swings along (dx, dy) at omega: at its fastest, |omega (dx, dy)| px per us
+    s0 = np.sin(obj.phase)
+    assert obj.centre(0) == pytest.approx((obj.cx + obj.dx * s0, obj.cy + obj.dy * s0))
+    speed = obj.omega * np.hypot(obj.dx, obj.dy) * 1e6
+    assert 300.0 <= speed <= 3000.0
+    assert "near_objects" in near.describe() and "near_objects" not in street.describe()
+
+
+def test_a_near_objects_sample_is_exactly_its_rendered_video(rng):
+    scene = NightStreet((64, 48), NEAR, rng=1)
+    events = random_events(rng, 3_000, (64, 48), span_us=100_000)
+    got = scene.sample(events)
+    covered = 0
+    for t in np.unique(events["t"])[:400]:
+        sel = events["t"] == t
+        frame = scene.frame(int(t))
+        np.testing.assert_allclose(got[sel], frame[events["y"][sel], events["x"][sel]], rtol=1e-5)
+        cx, cy = scene.objects[0].centre(int(t))
+        ev = events[sel]
+        o = scene.objects[0]
+        covered += np.count_nonzero(((ev["x"] - cx) / o.ax) ** 2 + ((ev["y"] - cy) / o.ay) ** 2 < 1)
+    assert covered > 10  # some of the checked events fell on the object
+
+
+def test_a_fast_near_object_fires_densely_and_a_scene_without_one_keeps_its_digest():
+    size = (96, 72)
+    plain = SyntheticBackground(FAST).draw(30_000, size, rng=5)
+    near = SyntheticBackground(NEAR).draw(30_000, size, rng=5)
+    assert near.events.size > 1.5 * plain.events.size
+    assert "near_objects" not in FAST.to_dict() and NEAR.to_dict()["near_objects"] == [1, 1]
+    assert SceneConfig.from_dict(NEAR.to_dict()) == NEAR
+    assert SceneConfig.from_dict(FAST.to_dict()) == FAST
 
 
 def test_synthetic_intensity_choices_and_camera():

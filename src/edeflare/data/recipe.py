@@ -327,6 +327,8 @@ def _legacy_flare_defaults() -> dict[str, Any]:
 
 
 def _asdict(value: Any) -> Any:
+    if isinstance(value, SceneConfig):  # its own form: no near_* fields where it has none
+        return value.to_dict()
     return dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
 
 

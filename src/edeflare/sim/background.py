@@ -75,6 +75,7 @@ __all__ = [
     "INTENSITY_ESTIMATORS",
     "Background",
     "BackgroundSource",
+    "NearObject",
     "NightStreet",
     "RecordedBackground",
     "SceneConfig",
@@ -358,6 +359,11 @@ class SceneConfig:
     shake_hz: tuple[float, float] = (2.0, 12.0)
     noise_rate_hz: tuple[float, float] = (0.05, 0.5)
     fps: float = 2000.0
+    near_objects: tuple[int, int] = (0, 0)
+    near_height: tuple[float, float] = (0.3, 0.8)
+    near_speed_px_per_s: tuple[float, float] = (300.0, 3000.0)
+    near_level: tuple[float, float] = (15.0, 120.0)
+    near_contrast: tuple[float, float] = (0.3, 0.9)
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -373,10 +379,12 @@ class SceneConfig:
         return dataclass_from_dict(cls, data)
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict."""
-        return {
-            k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()
-        }
+        """A JSON-ready dict (without the ``near_*`` fields where there is no near object, so
+        that a scene without one keeps the digest it had before they existed)."""
+        d = {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+        if self.near_objects[1] == 0:
+            d = {k: v for k, v in d.items() if not k.startswith("near_")}
+        return d
 
 
 def _value_noise(shape: tuple[int, int], scale: float, gen: np.random.Generator) -> np.ndarray:
@@ -442,6 +450,12 @@ class NightStreet:
         a = math.radians(p["pan_direction_deg"])
         speed = p["pan_px_per_s"] * 1e-6
         self._v = (speed * math.cos(a), speed * math.sin(a) * 0.3)  # mostly horizontal pans
+        # Near objects: drawn only when asked, after every other draw, so that a scene
+        # without them draws exactly what it drew before they existed.
+        self.objects: list[NearObject] = []
+        if cfg.near_objects[1] > 0:
+            n = int(gen.integers(cfg.near_objects[0], cfg.near_objects[1] + 1))
+            self.objects = [NearObject.draw(self.sensor_size, cfg, gen) for _ in range(n)]
 
     # -- the texture ---------------------------------------------------------------------
     def _paint(self, tw: int, th: int, hz: float, gen: np.random.Generator) -> np.ndarray:
@@ -523,6 +537,8 @@ class NightStreet:
         width, height = self.sensor_size
         out = np.empty((height, width), dtype=np.float32)
         _render(self.texture, out, *self._map(float(t_us)))
+        for obj in self.objects:
+            _paste(obj.texture, out, *obj.centre(float(t_us)), obj.ax, obj.ay)
         return out
 
     def sample(self, events: np.ndarray) -> np.ndarray:
@@ -534,11 +550,139 @@ class NightStreet:
             p["zoom_per_s"], p["shake_px"], p["shake_hz"], p["shake_phase"],
             p["focus"][0], p["focus"][1], self._c0[0], self._c0[1], self._v[0], self._v[1],
         )  # fmt: skip
+        for obj in self.objects:
+            _sample_object(
+                obj.texture, events["t"], events["x"], events["y"], out,
+                obj.cx, obj.cy, obj.dx, obj.dy, obj.omega, obj.phase, obj.ax, obj.ay,
+            )  # fmt: skip
         return out
 
     def describe(self) -> dict[str, Any]:
         """The drawn scene parameters, JSON-ready."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.params.items()}
+        d = {k: list(v) if isinstance(v, tuple) else v for k, v in self.params.items()}
+        if self.objects:
+            d["near_objects"] = [obj.describe() for obj in self.objects]
+        return d
+
+
+@dataclass(frozen=True)
+class NearObject:
+    """A large textured object close to the camera (a head, a hand, a passer-by), swinging
+    to and fro in front of the street: no light, but a large, dense, compact patch of events
+    that moves fast, which a de-flarer must keep.
+
+    It is an ellipse of semi-axes ``ax, ay`` pixels with its own texture (value noise at
+    three scales, multiplicative, and a darker rim), centred at
+    ``(cx, cy) + (dx, dy) sin(omega t + phase)``: it stays in view for any duration, at its
+    fastest ``omega * |(dx, dy)|`` pixels per microsecond.
+
+    Examples
+    --------
+    >>> cfg = SceneConfig(near_objects=(1, 1))
+    >>> obj = NearObject.draw((64, 48), cfg, np.random.default_rng(0))
+    >>> bool(0.3 * 24 <= obj.ay <= 0.8 * 24), obj.texture.shape == (2 * obj.iy + 3, 2 * obj.ix + 3)
+    (True, True)
+    """
+
+    texture: np.ndarray
+    cx: float
+    cy: float
+    dx: float
+    dy: float
+    omega: float
+    phase: float
+    ax: float
+    ay: float
+
+    @property
+    def ix(self) -> int:
+        return math.ceil(self.ax)
+
+    @property
+    def iy(self) -> int:
+        return math.ceil(self.ay)
+
+    @classmethod
+    def draw(
+        cls, sensor_size: SensorSize, cfg: SceneConfig, gen: np.random.Generator
+    ) -> NearObject:
+        """One object of ``cfg``'s ranges on a sensor of ``sensor_size``."""
+        width, height = sensor_size
+        u = lambda pair: float(gen.uniform(*pair))  # noqa: E731
+        ay = u(cfg.near_height) * height / 2
+        ax = ay * u((0.6, 1.0))
+        cx, cy = u((0.25, 0.75)) * width, u((0.3, 0.7)) * height
+        swing = u((0.05, 0.2)) * width
+        angle = u((-0.5, 0.5))  # mostly sideways, as a head turns or a person passes
+        dx, dy = swing * math.cos(angle), swing * math.sin(angle)
+        omega = u(cfg.near_speed_px_per_s) * 1e-6 / swing
+        phase = u((0.0, 2 * math.pi))
+        ix, iy = math.ceil(ax), math.ceil(ay)
+        shape = (2 * iy + 3, 2 * ix + 3)
+        c = u(cfg.near_contrast)
+        noise = (
+            0.4 * _value_noise(shape, 1.0, gen)
+            + 0.35 * _value_noise(shape, 3.0, gen)
+            + 0.25 * _value_noise(shape, 8.0, gen)
+        )
+        yy, xx = np.mgrid[: shape[0], : shape[1]]
+        r = np.hypot((xx - ix - 1) / max(ax, 1.0), (yy - iy - 1) / max(ay, 1.0))
+        rim = np.where(r > 0.85, 0.5, 1.0)  # an outline, as hair or a sleeve gives
+        tex = u(cfg.near_level) * rim * np.exp(c * noise)
+        texture = np.clip(tex, 0.5, None).astype(np.float32)
+        return cls(texture, cx, cy, dx, dy, omega, phase, ax, ay)
+
+    def centre(self, t_us: float) -> tuple[float, float]:
+        """Its centre at ``t_us``."""
+        s = math.sin(self.omega * t_us + self.phase)
+        return self.cx + self.dx * s, self.cy + self.dy * s
+
+    def describe(self) -> dict[str, float]:
+        """Its drawn parameters (not its texture), JSON-ready."""
+        names = ("cx", "cy", "dx", "dy", "omega", "phase", "ax", "ay")
+        return {k: float(getattr(self, k)) for k in names}
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _object_value(tex, qx, qy, ax, ay):  # pragma: no cover - compiled
+    """The object's intensity at offset ``(qx, qy)`` from its centre, or -1 outside it."""
+    if ax <= 0.0 or ay <= 0.0 or (qx / ax) ** 2 + (qy / ay) ** 2 > 1.0:
+        return -1.0
+    th, tw = tex.shape
+    px = qx + (tw - 1) // 2
+    py = qy + (th - 1) // 2
+    ix = np.int64(px)
+    iy = np.int64(py)
+    wx = px - ix
+    wy = py - iy
+    top = (1.0 - wx) * tex[iy, ix] + wx * tex[iy, ix + 1]
+    bottom = (1.0 - wx) * tex[iy + 1, ix] + wx * tex[iy + 1, ix + 1]
+    return (1.0 - wy) * top + wy * bottom
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _paste(tex, out, cx, cy, ax, ay):  # pragma: no cover - compiled
+    """Draw an object centred at ``(cx, cy)`` over ``out`` (the pixels its ellipse covers)."""
+    h, w = out.shape
+    y0, y1 = max(0, np.int64(cy - ay) - 1), min(h, np.int64(cy + ay) + 2)
+    x0, x1 = max(0, np.int64(cx - ax) - 1), min(w, np.int64(cx + ax) + 2)
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            v = _object_value(tex, x - cx, y - cy, ax, ay)
+            if v >= 0.0:
+                out[y, x] = v
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _sample_object(
+    tex, t, x, y, out, cx, cy, dx, dy, omega, phase, ax, ay
+):  # pragma: no cover - compiled
+    """:func:`_paste` at each event's own time and pixel (the same arithmetic)."""
+    for i in range(t.size):
+        s = math.sin(omega * np.float64(t[i]) + phase)
+        v = _object_value(tex, x[i] - (cx + dx * s), y[i] - (cy + dy * s), ax, ay)
+        if v >= 0.0:
+            out[i] = v
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
