@@ -254,3 +254,26 @@ def test_the_forward_test_sets_are_all_test_and_never_trained_on(tmp_path):
     with h5py.File(tmp_path / "test" / "seq_00000.h5") as f:
         assert f.attrs["variant"] == "forward" and f.attrs["recipe"] == "eflare-forward"
         assert {"input", "gt", "flare", "light", "background"} <= set(f)
+
+
+def test_eflare_near_holds_near_objects_in_every_part_and_seeds_of_its_own():
+    mix = RECIPES["eflare-near"]
+    assert isinstance(mix, Mix)
+    parts = dict(mix.parts)
+    assert list(parts) == ["near-346", "near-640", "near-night-640", "near-1280"]
+    assert [(r.sequences, r.test_sequences, r.sensor_size) for r in parts.values()] == [
+        (16, 2, (346, 260)), (16, 2, (640, 480)), (10, 1, (640, 480)), (7, 1, (1280, 720)),
+    ]  # fmt: skip
+    assert all(r.scene.near_objects == (1, 2) for r in parts.values())
+    assert parts["near-1280"].scene.near_speed_px_per_s == (450.0, 4500.0)
+    assert all(r.config.components for r in parts.values())  # the scene alone stored
+    others = [
+        r.seed
+        for name in RECIPES.names()
+        if name != "eflare-near"
+        for r in (dict(RECIPES[name].parts).values() if isinstance(RECIPES[name], Mix)
+                  else [RECIPES[name]])
+    ]  # fmt: skip
+    assert not {r.seed for r in parts.values()} & set(others)
+    assert "near_objects" in parts["near-640"].to_dict()["scene"]
+    assert mix.sha256() == "235bad6bfab27381d65d50dc1a85176b4506bb73eaef476e995a2d0b539f0e86"
