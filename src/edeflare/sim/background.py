@@ -38,6 +38,10 @@ spec, its own random stream) and Poisson background-activity noise is added
 about 2 M events/s at 640x480 (median; 1-10 across scenes). The intensity
 field is the texture sampled exactly at each event (no estimate needed), and
 :meth:`Background.video` renders any frame for the forward model.
+
+Where ``SceneConfig.near_objects`` asks for them, one or more :class:`NearObject` (large
+textured ellipses close to the camera, a head or a passer-by) swing fast in front of the
+street: scene, not light, that fills much of the frame and moves fast.
 """
 
 from __future__ import annotations
