@@ -90,3 +90,14 @@ def _fmt(v: object) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
     return str(v)
+
+
+def model_label(weights: str) -> str:
+    """A model row's name: a run's folder for a weights file, else the bundled name.
+
+    Examples
+    --------
+    >>> model_label("runs/near/model.safetensors"), model_label("learned")
+    ('near', 'learned')
+    """
+    return Path(weights).parent.name if weights.endswith(".safetensors") else weights

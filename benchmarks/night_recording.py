@@ -49,7 +49,7 @@ import re
 from pathlib import Path
 
 import numpy as np
-from _common import add_model_option, report
+from _common import add_model_option, model_label, report
 
 from edeflare import read_events
 from edeflare.eval.score import classify_events, score_recording
@@ -162,11 +162,6 @@ def faery_file(path: Path, name: str = "evt3.raw") -> Path:
     return path
 
 
-def _label(weights: str) -> str:
-    """A model row's name: a run's folder for a weights file, else the bundled name."""
-    return Path(weights).parent.name if weights.endswith(".safetensors") else weights
-
-
 def overlay_figure(events: np.ndarray, size: tuple[int, int], lights: Lights, path: Path) -> None:
     """Four 100 ms windows with the regions drawn (light green, halo orange, ghost violet)."""
     from PIL import Image, ImageDraw
@@ -207,7 +202,7 @@ def scenes_kept(folder: Path, models: list[str]) -> list[dict]:
     methods = [(m, m, {}) for m in ("dv-fastdecay", "pfd-a")]
     methods += [(w, "model", {"weights": w}) for w in (*MODELS, *models)]
     for label, method, params in methods:
-        row = {"method": _label(label)}
+        row = {"method": model_label(label)}
         for name, (events, size) in scenes.items():
             out = deflare(events, size, method, rng=0, **params)
             row[name] = round(100 * out.size / events.size, 1)
@@ -266,7 +261,7 @@ def main() -> None:
         )
         for s in result.rows:
             rows.append({
-                "method": _label(weights) if s.method == "model" else s.method,
+                "method": model_label(weights) if s.method == "model" else s.method,
                 "halo removed": round(100 * s.halo_removed, 1),
                 "ghost removed": round(100 * s.ghost_removed, 1),
                 "flare removed": round(100 * s.flare_removed, 1),

@@ -41,7 +41,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from _common import add_model_option, report
+from _common import add_model_option, model_label, report
 
 from edeflare import deflare, read_events
 from edeflare.events import SensorSize, make_events
@@ -124,10 +124,6 @@ def shares(events: np.ndarray, kept: np.ndarray) -> dict[str, float]:
     return {k: round(float(v), 1) for k, v in row.items()}
 
 
-def _label(weights: str) -> str:
-    return Path(weights).parent.name if weights.endswith(".safetensors") else weights
-
-
 def face_figure(events: np.ndarray, size: SensorSize, models: list[str], path: Path) -> None:
     """The face in a still 100 ms (0.3 s) and a fast 20 ms (0.8 s), input and each model."""
     from edeflare.viz import event_frame, grid, save_image
@@ -139,7 +135,7 @@ def face_figure(events: np.ndarray, size: SensorSize, models: list[str], path: P
         a = int(t[0]) + int(start_s * 1e6)
         b = a + span_us
         shown = {"input": events[(t >= a) & (t < b)]}
-        shown.update({_label(m): o[(o["t"] >= a) & (o["t"] < b)] for m, o in outs.items()})
+        shown.update({model_label(m): o[(o["t"] >= a) & (o["t"] < b)] for m, o in outs.items()})
         for name, ev in shown.items():
             frames.append(event_frame(ev, size)[:, 280:1000])
             share = "" if name == "input" else f", {100 * ev.size / shown['input'].size:.0f} % kept"
@@ -155,7 +151,7 @@ def main() -> None:
     args = parser.parse_args()
     scenes = {name: load_scene(args.folder, name) for name in SCENES}
     methods = [(m, m, {}) for m in METHODS]
-    methods += [(_label(w), "model", {"weights": w}) for w in (*MODELS, *args.model)]
+    methods += [(model_label(w), "model", {"weights": w}) for w in (*MODELS, *args.model)]
     rows = []
     for label, method, params in methods:
         row: dict[str, object] = {"method": label}

@@ -8,13 +8,16 @@
   without testing. :func:`require` does the same for any other requirement
   (:func:`browser` finds Chromium on ``PATH``).
 - :func:`random_events`: a sorted random stream of :data:`EVENT_DTYPE`.
+- :func:`load_benchmark`: a script of ``benchmarks/`` as a module, for its tests.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import shutil
 import signal
+import types
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -35,6 +38,17 @@ settings.register_profile(
 settings.load_profile("edeflare")
 
 SHARED_DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def load_benchmark(monkeypatch: pytest.MonkeyPatch, name: str) -> types.ModuleType:
+    """``benchmarks/<name>.py`` imported as a module (its folder on ``sys.path`` for the
+    test's duration, so that its ``_common`` and sibling scripts import)."""
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 ON_CI = bool(os.environ.get("CI"))

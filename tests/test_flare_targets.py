@@ -4,24 +4,17 @@ small simulated sets."""
 from __future__ import annotations
 
 import argparse
-import importlib.util
-from pathlib import Path
 
 import pytest
 
+from conftest import load_benchmark
 from edeflare.data.generate import RECIPES, generate_dataset
 from edeflare.eval.metrics import METRICS
-
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture
 def flare_targets(monkeypatch):
-    monkeypatch.syspath_prepend(str(BENCHMARKS))  # its `_common`
-    spec = importlib.util.spec_from_file_location("flare_targets", BENCHMARKS / "flare_targets.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark(monkeypatch, "flare_targets")
 
 
 def test_the_eflare_forward_target_scores_every_method(flare_targets, tmp_path):

@@ -2,26 +2,18 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import load_benchmark
 from edeflare.events import make_events, sort_events
-
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture
 def night_recording(monkeypatch):
-    monkeypatch.syspath_prepend(str(BENCHMARKS))  # its `_common`
-    path = BENCHMARKS / "night_recording.py"
-    spec = importlib.util.spec_from_file_location("night_recording", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark(monkeypatch, "night_recording")
 
 
 def _blob(rng, n, t0, span, cx, cy, r):

@@ -2,20 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from conftest import load_benchmark
 from edeflare.errors import ParameterError
 from edeflare.events import concat_events, event_keys, make_events
 from edeflare.io import read_events
 from edeflare.models.infer import ModelDeflarer, bundled_weights
 from edeflare.models.mask_kernels import keep_logit_threshold
 from edeflare.rules.terms import RuleTerms, shift_knobs
-
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 SETTINGS = [
     {},  # every rule off: the network alone
@@ -77,10 +73,7 @@ def test_on_a_slow_lamps_scattered_light_too(monkeypatch, real_data):
     """The reference window's lamp is too slow for the light test: its windows are
     light-free and hold a scattered-light field, where the light-free shift covers other
     events when the scatter shift is on (about 30 s on 2 cores)."""
-    monkeypatch.syspath_prepend(str(BENCHMARKS))
-    spec = importlib.util.spec_from_file_location("ref", BENCHMARKS / "reference_window.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_benchmark(monkeypatch, "reference_window")
     if not module.PICTURE.is_file():
         pytest.skip(f"{module.PICTURE} is not there")
     _check(module.reference_window(4), module.SENSOR)

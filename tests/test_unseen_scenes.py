@@ -2,24 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from conftest import load_benchmark
 from edeflare.events import make_events
-
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture
 def unseen(monkeypatch):
-    monkeypatch.syspath_prepend(str(BENCHMARKS))  # its `_common`
-    spec = importlib.util.spec_from_file_location("unseen_scenes", BENCHMARKS / "unseen_scenes.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark(monkeypatch, "unseen_scenes")
 
 
 def _events(counts):

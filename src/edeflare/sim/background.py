@@ -648,20 +648,24 @@ class NearObject:
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def _bilinear(tex, qx, qy):  # pragma: no cover - compiled
+    """``tex`` at the point ``(qx, qy)``, bilinear (the caller keeps it inside the texture)."""
+    ix = np.int64(qx)
+    iy = np.int64(qy)
+    wx = qx - ix
+    wy = qy - iy
+    top = (1.0 - wx) * tex[iy, ix] + wx * tex[iy, ix + 1]
+    bottom = (1.0 - wx) * tex[iy + 1, ix] + wx * tex[iy + 1, ix + 1]
+    return (1.0 - wy) * top + wy * bottom
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _object_value(tex, qx, qy, ax, ay):  # pragma: no cover - compiled
     """The object's intensity at offset ``(qx, qy)`` from its centre, or -1 outside it."""
     if ax <= 0.0 or ay <= 0.0 or (qx / ax) ** 2 + (qy / ay) ** 2 > 1.0:
         return -1.0
     th, tw = tex.shape
-    px = qx + (tw - 1) // 2
-    py = qy + (th - 1) // 2
-    ix = np.int64(px)
-    iy = np.int64(py)
-    wx = px - ix
-    wy = py - iy
-    top = (1.0 - wx) * tex[iy, ix] + wx * tex[iy, ix + 1]
-    bottom = (1.0 - wx) * tex[iy + 1, ix] + wx * tex[iy + 1, ix + 1]
-    return (1.0 - wy) * top + wy * bottom
+    return _bilinear(tex, qx + (tw - 1) // 2, qy + (th - 1) // 2)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -703,18 +707,13 @@ def _sample(
         shake = shake_px * math.sin(2 * math.pi * shake_hz * tt * 1e-6 + phase)
         qx = min(max(c0x + vx * tt + (x[i] - fx) * scale, 0.0), qx_hi)
         qy = min(max(c0y + vy * tt + shake + (y[i] - fy) * scale, 0.0), qy_hi)
-        ix = np.int64(qx)
-        iy = np.int64(qy)
-        wx = qx - ix
-        wy = qy - iy
-        top = (1.0 - wx) * tex[iy, ix] + wx * tex[iy, ix + 1]
-        bottom = (1.0 - wx) * tex[iy + 1, ix] + wx * tex[iy + 1, ix + 1]
-        out[i] = (1.0 - wy) * top + wy * bottom
+        out[i] = _bilinear(tex, qx, qy)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _render(tex, out, scale, fx, fy, ox, oy):  # pragma: no cover - compiled
-    """``out[y, x] = tex(o + (x - fx, y - fy) * scale)``, bilinear, clamped at the edges."""
+    """``out[y, x] = tex(o + (x - fx, y - fy) * scale)``, bilinear, clamped at the edges
+    (:func:`_bilinear`'s arithmetic, its row terms kept out of the inner loop)."""
     th, tw = tex.shape
     h, w = out.shape
     qx_hi = tw - 1.000001
