@@ -19,7 +19,8 @@ whether it is met, and writes ``results/flare_targets.json``:
    scenes without a light): the model's keep threshold, then its keep threshold and
    every rule shift together, chosen on the other recordings (the mean of their
    combined scores, or shares kept) and scored on the one held out, beside the card's
-   setting (whatever chose it: the card says) and the in-sample best. The held-out
+   setting (whatever chose it: the card says) and the in-sample best. The reference
+   window is a window of the night recording: each is held out with the other. The held-out
    setting is what the target's verdicts read. A search over the knobs runs each model
    once per recording (``_held_out.py``: the rule terms).
 2. **eflare-r-sim** (640x480, never trained on): better than the raw input and every
@@ -56,6 +57,7 @@ from __future__ import annotations
 import argparse
 import functools
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -273,6 +275,20 @@ def _loo_items(args: argparse.Namespace, deflarer: ModelDeflarer) -> list[TermsR
     return items
 
 
+def same_recording(names: Sequence[str]) -> dict[str, str]:
+    """The leave-one-out's groups: the reference window is cut from the night recording,
+    so where both are scored each is held out with the other.
+
+    >>> same_recording(["gen3", "night_recording", "reference_window"])
+    {'reference_window': 'night_recording'}
+    >>> same_recording(["gen3", "reference_window"])
+    {}
+    """
+    from reference_window import SOURCE
+
+    return {"reference_window": SOURCE} if {"reference_window", SOURCE} <= set(names) else {}
+
+
 def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     """Target 1, held out: the model's keep threshold, then every rule shift with it,
     chosen on the other real recordings (the combined score of those with a light, the
@@ -304,11 +320,14 @@ def leave_one_out_set(args: argparse.Namespace) -> tuple[list[dict], list[dict]]
         return at(setting)[:, -1]
 
     names = [it.name for it in items]
+    groups = same_recording(names)
     start = {**card, "keep": card_thr}
     fixed = {k: [v] for k, v in card.items()}
-    by_threshold = leave_one_out_search(combined, names, {**fixed, "keep": thresholds}, [start])
+    by_threshold = leave_one_out_search(
+        combined, names, {**fixed, "keep": thresholds}, [start], groups
+    )
     every = leave_one_out_search(
-        combined, names, {**grid, "keep": thresholds}, [start, {k: 0.0 for k in card}]
+        combined, names, {**grid, "keep": thresholds}, [start, {k: 0.0 for k in card}], groups
     )  # fmt: skip
     rows, verdicts = [], []
     for i, (it, thr, ev) in enumerate(zip(items, by_threshold, every, strict=True)):

@@ -61,6 +61,9 @@ from edeflare.methods import deflare
 PICTURE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "real_flare_example.png"
 LIGHTS = Path(__file__).with_name("reference_window_lights.json")
 SENSOR = (1280, 720)
+SOURCE = "night_recording"
+"""The recording the panel is a window of (``night_recording.py``): a leave-one-out holds
+the two out together, since a setting chosen on one has seen the other."""
 PANEL_COLUMNS = 740  # the input panel; the next starts 744 columns on
 TITLE_ROWS = 30
 COLOURS = {(30, 70, 220): (1,), (220, 30, 30): (0,), (125, 50, 125): (1, 0)}  # ON, OFF, both

@@ -111,3 +111,9 @@ def test_the_leave_one_out_chooses_every_knob_on_the_other_recordings(
         "davis346_street_cars: kept, every knob held out",
     ]
     assert verdicts[0]["measured"] == pytest.approx(lamps["flare removed"], abs=1e-4)
+
+
+def test_the_reference_window_is_held_out_with_the_recording_it_is_cut_from(flare_targets):
+    names = ["prophesee_gen3_rotating_light", "night_recording", "reference_window", "evt2"]
+    assert flare_targets.same_recording(names) == {"reference_window": "night_recording"}
+    assert flare_targets.same_recording(names[:1] + names[2:]) == {}  # without --faery

@@ -103,3 +103,44 @@ def test_search_leaves_unscored_recordings_out_and_refuses_bad_arguments():
         leave_one_out_search(scores, ["a", "b"], {"k": [0]}, [{"z": 1}])
     with pytest.raises(ValueError, match="gave 3 values for 2 recordings"):
         leave_one_out_search(scores, ["a", "b"], {"k": [0]})
+
+
+def test_inputs_of_one_recording_are_held_out_together():
+    # "window" is cut from "night": neither may choose for the other
+    table = {
+        "gen3": {0.3: 0.95, 0.7: 0.80},
+        "night": {0.3: 0.60, 0.7: 0.90},
+        "window": {0.3: 0.50, 0.7: 0.99},
+    }
+    groups = {"window": "night"}
+    rows = leave_one_out(lambda r, s: table[r][s], list(table), [0.3, 0.7], groups)
+    by = {r.recording: r for r in rows}
+    # night out: gen3 alone chooses 0.3 (ungrouped, window's 0.99 would pull it to 0.7)
+    assert (by["night"].chosen, by["night"].held_out) == (0.3, 0.60)
+    assert (by["window"].chosen, by["window"].held_out) == (0.3, 0.50)
+    # gen3 out: night + window 0.55 / 0.945 -> 0.7
+    assert (by["gen3"].chosen, by["gen3"].held_out) == (0.7, 0.80)
+    ungrouped = {r.recording: r.chosen for r in leave_one_out(
+        lambda r, s: table[r][s], list(table), [0.3, 0.7])}  # fmt: skip
+    assert ungrouped["night"] == 0.7  # gen3 0.875 / window+gen3 0.895: the window chose
+
+    def scores(s):
+        return [table[r][s["keep"]] for r in table]
+
+    searched = {r.recording: r for r in leave_one_out_search(
+        scores, list(table), {"keep": [0.3, 0.7]}, groups=groups)}  # fmt: skip
+    assert {k: r.chosen["keep"] for k, r in searched.items()} == {
+        "gen3": 0.7, "night": 0.3, "window": 0.3}  # fmt: skip
+    assert searched["night"].held_out == 0.60
+
+
+def test_groups_naming_an_unknown_input_or_leaving_nothing_to_choose_are_refused():
+    def score(r, s):
+        return 1.0
+
+    with pytest.raises(ValueError, match=r"not among the recordings: \['moon'\]"):
+        leave_one_out(score, ["a", "b"], [1], {"moon": "a"})
+    with pytest.raises(ValueError, match=r"nothing left to choose for \['a', 'b'\]"):
+        leave_one_out(score, ["a", "b"], [1], {"a": "one", "b": "one"})
+    with pytest.raises(ValueError, match="nothing left to choose"):
+        leave_one_out_search(lambda s: [1.0, 1.0], ["a", "b"], {"k": [0]}, groups={"b": "a"})

@@ -11,6 +11,10 @@ best setting would have had in-sample (the optimism of tuning on what you report
 shifts and keep threshold), too many together to try every combination: a coordinate
 ascent over a grid per knob chooses on the others.
 
+Two inputs cut from one recording are not independent: a setting chosen on one has seen
+the other. ``groups`` names each input's source recording, and holding an input out
+leaves its whole group out of the choice (leave one recording out, not one file).
+
 Examples
 --------
 Three recordings, two settings: each held-out recording gets the others' choice, which
@@ -20,6 +24,14 @@ is never its own best here (the optimism of tuning in-sample).
 >>> rows = leave_one_out(lambda rec, name: table[rec][name], ["a", "b", "c"], ["lo", "hi"])
 >>> [(r.recording, r.chosen, r.held_out, r.in_sample) for r in rows]
 [('a', 'hi', 0.5, 0.9), ('b', 'lo', 0.6, 0.8), ('c', 'lo', 0.5, 0.7)]
+
+If ``a`` and ``c`` are cut from one recording, ``c`` alone chooses for ``b``, and ``b``
+alone for each of them:
+
+>>> rows = leave_one_out(lambda rec, name: table[rec][name], ["a", "b", "c"], ["lo", "hi"],
+...                      groups={"a": "one", "c": "one"})
+>>> [(r.recording, r.chosen, r.held_out) for r in rows]
+[('a', 'hi', 0.5), ('b', 'lo', 0.6), ('c', 'hi', 0.7)]
 
 Two knobs searched together, the scores of the three recordings at each setting:
 
@@ -38,7 +50,7 @@ import math
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from typing import Any
 
-__all__ = ["HeldOut", "leave_one_out", "leave_one_out_search"]
+__all__ = ["HeldOut", "leave_one_out", "leave_one_out_search", "others_of"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,10 +70,36 @@ class HeldOut:
         return self.in_sample - self.held_out
 
 
+def others_of(
+    recordings: Sequence[str], groups: Mapping[str, Hashable] | None = None
+) -> dict[str, list[str]]:
+    """What chooses for each held-out input: every input not of its source recording.
+
+    ``groups`` maps an input to its source recording (an input left out: its own). At
+    least one input must be left to choose for each.
+
+    Examples
+    --------
+    >>> others_of(["gen3", "night", "window"], {"window": "night"})
+    {'gen3': ['night', 'window'], 'night': ['gen3'], 'window': ['gen3']}
+    """
+    groups = dict(groups or {})
+    unknown = sorted(set(groups) - set(recordings))
+    if unknown:
+        raise ValueError(f"groups name input(s) not among the recordings: {unknown}")
+    source = {r: groups.get(r, r) for r in recordings}
+    out = {held: [r for r in recordings if source[r] != source[held]] for held in recordings}
+    alone = [held for held, rest in out.items() if not rest]
+    if alone:
+        raise ValueError(f"nothing left to choose for {alone}: every input is of one recording")
+    return out
+
+
 def leave_one_out(
     score: Callable[[str, Hashable], float],
     recordings: Sequence[str],
     settings: Sequence[Hashable],
+    groups: Mapping[str, Hashable] | None = None,
 ) -> list[HeldOut]:
     """Hold each recording out in turn; choose the setting on the rest (see the module).
 
@@ -74,11 +112,14 @@ def leave_one_out(
         At least two.
     settings : sequence
         The candidates (ties go to the first).
+    groups : mapping, optional
+        Each input's source recording, where several are cut from one (:func:`others_of`).
     """
     if len(recordings) < 2:
         raise ValueError("leave-one-out needs at least two recordings")
     if not settings:
         raise ValueError("no settings to choose from")
+    choosers = others_of(recordings, groups)
     table = {(r, s): float(score(r, s)) for r in recordings for s in settings}
 
     def mean(recs: Sequence[str], s: Hashable) -> float:
@@ -86,7 +127,7 @@ def leave_one_out(
 
     rows = []
     for held in recordings:
-        others = [r for r in recordings if r != held]
+        others = choosers[held]
         chosen = max(settings, key=lambda s: mean(others, s))
         best = max(settings, key=lambda s: mean([held], s))
         rows.append(HeldOut(held, chosen, table[held, chosen], table[held, best], best))
@@ -104,6 +145,7 @@ def leave_one_out_search(
     recordings: Sequence[str],
     grid: Mapping[str, Sequence[Any]],
     starts: Sequence[Mapping[str, Any]] = (),
+    groups: Mapping[str, Hashable] | None = None,
 ) -> list[HeldOut]:
     """Hold each recording out in turn; choose every knob on the rest by coordinate ascent.
 
@@ -125,6 +167,8 @@ def leave_one_out_search(
     starts : sequence of mapping, optional
         Settings to ascend from (a knob left out: its first grid value; default: one
         start, every knob at its first value). A start's value need not be on the grid.
+    groups : mapping, optional
+        Each input's source recording, where several are cut from one (:func:`others_of`).
 
     Returns
     -------
@@ -133,6 +177,8 @@ def leave_one_out_search(
     """
     if len(recordings) < 2:
         raise ValueError("leave-one-out needs at least two recordings")
+    choosers = others_of(recordings, groups)
+    column = {r: j for j, r in enumerate(recordings)}
     names = list(grid)
     axes = [list(grid[n]) for n in names]
     if not axes or any(not a for a in axes):
@@ -172,7 +218,7 @@ def leave_one_out_search(
 
     rows = []
     for i, held in enumerate(recordings):
-        chosen, _ = search([j for j in range(len(recordings)) if j != i])
+        chosen, _ = search([column[r] for r in choosers[held]])
         own, own_score = search([i])
         setting, best = (dict(zip(names, p, strict=True)) for p in (chosen, own))
         rows.append(HeldOut(held, setting, at(chosen)[i], own_score, best))
