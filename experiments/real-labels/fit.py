@@ -8,6 +8,10 @@ Steps (each cached in RUN, so a rerun after a kill goes on)::
     python experiments/real-labels/fit.py nested RUN [--part I/N]  # arm 2: the nested choice
     python experiments/real-labels/fit.py loo RUN --balance  # arm 3: real classes balanced
     python experiments/real-labels/fit.py loo RUN --hold     # arm 4: simulation held to learned
+    python experiments/real-labels/fit.py loo RUN --by-source  # arm 1, by source recording
+
+``--by-source``: the reference window is a window of the night recording, so each of the
+two is held out of its fit together with the other (arm 1's other folds are unchanged).
 
 The fits are ``edeflare tune-head``'s (:mod:`edeflare.models.head_tuning`) on these rows.
 
@@ -27,6 +31,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1] / "benchmarks"))
 
+from flare_targets import same_recording  # noqa: E402
+
+from edeflare.eval.leave_one_out import others_of  # noqa: E402
 from edeflare.io import read_events  # noqa: E402
 from edeflare.io.sequence import list_sequences  # noqa: E402
 from edeflare.lights import Lights, bundled_lights, load_lights  # noqa: E402
@@ -179,13 +186,18 @@ LIT = ("prophesee_gen3_rotating_light", "davis346_flicker_lamps", "night_recordi
 def cmd_loo(args) -> None:
     run = Path(args.run)
     sim, real = load_rows(run)
-    out_path = run / ("loo-balanced.json" if args.balance else
-                      "loo-held.json" if args.hold else "loo.json")  # fmt: skip
+    arm = "-balanced" if args.balance else "-held" if args.hold else ""
+    out_path = run / f"loo{arm}{'-by-source' if args.by_source else ''}.json"
     results = json.loads(out_path.read_text()) if out_path.is_file() else {}
     learned = ModelDeflarer(bundled_weights("learned"), runtime="torch")
+    choosers = others_of(list(real), same_recording(list(real)) if args.by_source else None)
+    plain = run / f"loo{arm}.json"  # a fold with the same fit, already scored
+    plain = json.loads(plain.read_text()) if args.by_source and plain.is_file() else {}
     for held in real:
+        if held not in results and held in plain and len(choosers[held]) == len(real) - 1:
+            results[held] = plain[held]
         if held not in results:
-            others = [r for r in real if r != held]
+            others = choosers[held]
             _, _, params, thr, _ = fit(sim, real, others, balance=args.balance, hold=args.hold)
             results[held] = {
                 "threshold": thr,
@@ -214,13 +226,23 @@ def cmd_nested(args) -> None:
     run = Path(args.run)
     sim, real = load_rows(run)
     names = sorted(real)
+    # with --by-source a recording is left out with every input cut from it
+    source = {r: r for r in names}
+    source.update(same_recording(names) if args.by_source else {})
+    groups = sorted({tuple(r for r in names if source[r] == g) for g in source.values()})
+
+    def out_of(*rs: str) -> tuple[str, ...]:
+        return tuple(
+            sorted({m for g in groups for m in g if source[g[0]] in {source[r] for r in rs}})
+        )
+
     part, parts = (int(v) for v in args.part.split("/"))
     path = run / ("nested.json" if parts == 1 else f"nested-{part}-of-{parts}.json")
     cache = {}
     for other in sorted(run.glob("nested*.json")):  # every part's fits so far
         cache.update(json.loads(other.read_text()))
-    plans = [(a, (o,)) for a in ALPHAS for o in names]
-    plans += [(a, (o, i)) for a in ALPHAS for o in names for i in names if o < i]
+    plans = [(a, g) for a in ALPHAS for g in groups]
+    plans += [(a, tuple(sorted(g + h))) for a in ALPHAS for g in groups for h in groups if g < h]
     for n, (alpha, out) in enumerate(plans):
         key = f"{alpha}|{'+'.join(out)}"
         if key in cache or n % parts != part:
@@ -242,8 +264,9 @@ def cmd_nested(args) -> None:
         return
 
     def inner(alpha: float, o: str) -> np.ndarray:
-        """Mean over i != o of fit-without-{o, i}'s score on i, per threshold."""
-        rows = [cache[f"{alpha}|{'+'.join(sorted((o, i)))}"]["scores"][i] for i in names if i != o]
+        """Mean over i of another source of fit-without-{o, i}'s score on i, per threshold."""
+        rows = [cache[f"{alpha}|{'+'.join(out_of(o, i))}"]["scores"][i]
+                for i in names if source[i] != source[o]]  # fmt: skip
         return np.mean(rows, axis=0)
 
     result = {}
@@ -253,14 +276,16 @@ def cmd_nested(args) -> None:
                    key=lambda ak: table[ak[0]][ak[1]])  # fmt: skip
         result[o] = {"alpha": a, "threshold": THRESHOLDS[k],
                      "inner_mean": float(table[a][k]),
-                     "held_out": cache[f"{a}|{o}"]["scores"][o][k]}  # fmt: skip
+                     "held_out": cache[f"{a}|{'+'.join(out_of(o))}"]["scores"][o][k]}  # fmt: skip
         print(f"{o:32s} alpha {a} thr {THRESHOLDS[k]:.2f} held out {result[o]['held_out']:.3f}")
-    plain = {a: np.mean([cache[f"{a}|{o}"]["scores"][o] for o in names], axis=0) for a in ALPHAS}
+    plain = {a: np.mean([cache[f"{a}|{'+'.join(out_of(o))}"]["scores"][o] for o in names], axis=0)
+             for a in ALPHAS}  # fmt: skip
     a, k = max(((a, k) for a in ALPHAS for k in range(len(THRESHOLDS))),
                key=lambda ak: plain[ak[0]][ak[1]])  # fmt: skip
     result["_bundle"] = {"alpha": a, "threshold": THRESHOLDS[k], "loo_mean": float(plain[a][k])}
     print("bundle:", result["_bundle"])
-    (run / "choice.json").write_text(json.dumps(result, indent=1) + "\n")
+    choice = "choice-by-source.json" if args.by_source else "choice.json"
+    (run / choice).write_text(json.dumps(result, indent=1) + "\n")
 
 
 def main() -> None:
@@ -274,9 +299,19 @@ def main() -> None:
     lo.add_argument("run")
     lo.add_argument("--balance", action="store_true", help="arm 3: the real rows' classes balanced")
     lo.add_argument("--hold", action="store_true", help="arm 4: the simulated rows held to learned")
+    lo.add_argument(
+        "--by-source",
+        action="store_true",
+        help="the reference window held out with the night recording it is cut from",
+    )
     ne = sub.add_parser("nested")
     ne.add_argument("run")
     ne.add_argument("--part", default="0/1", help="I/N: the fits with index %% N == I")
+    ne.add_argument(
+        "--by-source",
+        action="store_true",
+        help="the reference window left out with the night recording it is cut from",
+    )
     args = p.parse_args()
     {"rows": cmd_rows, "loo": cmd_loo, "nested": cmd_nested}[args.cmd](args)
 
