@@ -37,8 +37,12 @@ Run::
         [--figure docs/figures/night_recording_regions.png]
 
 writes ``results/night_recording.json`` (``night_recording_scenes.json``) and
-``night_recording_lights.json`` (the annotation, with its checks) beside this script. No
-method's setting was chosen on these recordings: they are held out for every bundled model.
+``night_recording_lights.json`` (the annotation, with its checks) beside this script.
+No setting of ``learned`` or ``general`` was chosen on these recordings. ``night``'s
+light-free rules (the crowding test, the scattered-light field, their shifts) were made
+on ``reference_window.py``'s panel, a window of this recording: for ``night`` it is not
+held out (``flare_targets.py``'s leave-one-out holds the two out together). faery's two
+scenes without a light chose nothing.
 """
 
 from __future__ import annotations

@@ -697,6 +697,22 @@ def test_night_recording_table_is_the_benchmarks():
         assert [c.strip("*") for c in row[1:]] == want, row[0]
 
 
+def test_leave_one_out_numbers_are_the_benchmarks():
+    """benchmarks.md's held-out numbers of `night` are flare_targets_leave_one_out.json's:
+    threshold / every knob (card) of each recording with a light."""
+    path = ROOT / "benchmarks" / "results" / "flare_targets_leave_one_out.json"
+    rows = json.loads(path.read_text())["rows"]
+    page = _section((DOCS / "benchmarks.md").read_text(), "Goals of a de-flarer for every flare")
+    text = " ".join(page.replace("**", "").split())
+    lit = [r for r in rows if r["light"] == "yes"]
+    assert {r["recording"] for r in lit} >= {"night_recording", "reference_window"}
+    for r in lit:
+        want = (
+            f"{r['held out (threshold)']:.3f} / {r['held out (every knob)']:.3f} ({r['card']:.3f})"
+        )
+        assert want in text, (r["recording"], want)
+
+
 # --- what the README must keep -------------------------------------------------------------
 
 
