@@ -12,18 +12,17 @@ recording.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from edeflare.eval.score import classify_events, combined_score
+from edeflare.eval.phases import TERMS, measure_phases, phase_views
+from edeflare.eval.score import classify_events
 from edeflare.lights import Lights
 from edeflare.models.infer import ModelDeflarer
-from edeflare.models.mask_kernels import keep_logit_threshold
 from edeflare.models.two_view import check_phase_shift
 
-TERMS = ("flare removed", "light kept", "scene kept", "combined")
+__all__ = ["TERMS", "TermsRecording", "measure_phases", "phase_views"]
 
 
 class TermsRecording:
@@ -67,45 +66,3 @@ class TermsRecording:
         annotation the share kept stands in the combined column."""
         phases = [self.terms.logits(knobs, views=v) for v in self.views]
         return measure_phases(phases, self.regions, thresholds)
-
-
-def phase_views(
-    window_us: int, shift_us: int, phases: int
-) -> tuple[list[int], list[tuple[int, int]]]:
-    """The windowings (delays, sorted) that ``phases`` window phases with a second view
-    ``shift_us`` later run, and each phase's two views as indices into them.
-
-    Examples
-    --------
-    >>> phase_views(20_000, 5_000, 4)
-    ([0, 5000, 10000, 15000], [(0, 1), (1, 2), (2, 3), (3, 0)])
-    """
-    w = window_us
-    views = [(k * w // phases % w, (k * w // phases + shift_us) % w) for k in range(phases)]
-    delays = sorted({d for pair in views for d in pair})
-    return delays, [(delays.index(a), delays.index(b)) for a, b in views]
-
-
-def measure_phases(
-    phases: Sequence[np.ndarray],
-    regions: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None,
-    thresholds: Sequence[float],
-) -> np.ndarray:
-    """:meth:`TermsRecording.measure` of each phase's keep logits ``phases``: ``regions``
-    the events' flare, light and scored background (None: the share kept)."""
-    out = np.full((len(thresholds), len(TERMS)), math.nan)
-    for i, threshold in enumerate(thresholds):
-        cut = keep_logit_threshold(threshold)
-        rows = []
-        for logits in phases:
-            kept = logits > cut
-            if regions is None:
-                rows.append((math.nan, math.nan, math.nan, kept.mean()))
-                continue
-            flare, light, back = regions
-            removed = 1 - kept[flare].mean() if flare.any() else math.nan
-            lit = kept[light].mean() if light.any() else math.nan
-            scene = kept[back].mean() if back is not None and back.any() else math.nan
-            rows.append((removed, lit, scene, combined_score(removed, lit, scene)))
-        out[i] = np.mean(rows, axis=0)
-    return out

@@ -166,7 +166,7 @@ def score(real_item, params, threshold: float, lights_scored: bool) -> dict[str,
 
 def scores(real_item, params, thresholds, lights_scored: bool) -> list[dict[str, float]]:
     """:func:`score` at each of ``thresholds`` (the head run once)."""
-    from _held_out import measure_phases, phase_views
+    from edeflare.eval.phases import measure_phases, phase_views
 
     cols, code, _ = real_item
     logits = [head_logits(params, c) for c in cols]

@@ -25,6 +25,7 @@ from edeflare.models.head_tuning import (
     real_rows,
     recording_inputs,
     region_labels,
+    time_split,
     tune_head,
 )
 from edeflare.models.infer import ModelDeflarer, bundled_weights
@@ -181,6 +182,30 @@ def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng)
     summary = json.loads((out / "tune.json").read_text())
     assert read_card(out / "model.safetensors").keep_threshold == summary["simulated_threshold"]
     assert sorted(p.name for p in out.glob("*.npz")) == cached
+    assert summary["validation"] == {}
+
+    # validated on its last 30 %: three copies of it one after another (180 ms), fitted on
+    # what lies before the cut less a window and the largest delay (35 ms)
+    copies = [events.copy() for _ in range(3)]
+    for k, c in enumerate(copies):
+        c["t"] += k * 60_000
+    longer = tmp_path / "longer.h5"
+    write_events(longer, np.concatenate(copies), size)
+    validated = tmp_path / "validated"
+    assert main([args[0], str(trained), str(tmp_path / "sim"), "--real", f"{longer}:{lights}",
+                 *args[5:-1], "--out", str(validated), "--validate-last", "0.3",
+                 "--no-progress"]) == 0  # fmt: skip
+    summary = json.loads((validated / "tune.json").read_text())
+    t = np.concatenate(copies)["t"]
+    fit, val = time_split(t, 0.3, 35_000)
+    cut = t[-1] + 1 - 0.3 * (t[-1] + 1 - t[0])  # about 126 ms
+    assert t[fit].max() < cut - 35_000 <= t[~fit & ~val].min()
+    assert t[~val].max() < cut <= t[val].min()
+    assert summary["recordings"]["longer"]["light"] == int((np.tile(left, 3) & fit).sum())
+    v = summary["validation"]["longer"]
+    assert v["events"] == int(val.sum())
+    assert v["before"]["light kept"] < 0.1 and v["tuned"]["light kept"] > 0.9
+    assert np.isnan(v["tuned"]["scene kept"]) == np.isnan(v["before"]["scene kept"])
 
 
 def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
@@ -197,6 +222,8 @@ def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
         TuningConfig(lr=float("nan"))
     with pytest.raises(EdeflareError, match="epochs must be a positive integer"):
         TuningConfig(epochs=0)
+    with pytest.raises(EdeflareError, match=r"validate_last must be in \[0, 1\), got 1.0"):
+        TuningConfig(validate_last=1.0)
     empty = tmp_path / "empty.h5"
     write_events(empty, make_events([], [], [], []), (8, 8))
     assert main(["tune-head", "learned", str(tmp_path), "--real", str(empty),

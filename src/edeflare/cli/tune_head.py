@@ -70,6 +70,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         metavar="P",
         help="the card's keep threshold (default: chosen on the data's test splits)",
     )
+    p.add_argument(
+        "--validate-last",
+        type=float,
+        default=0.0,
+        metavar="F",
+        help="leave the last share F of each recording's span out of the fit and score it "
+        "after, beside the head before the fit (tune.json's validation)",
+    )
     p.add_argument("--epochs", type=int, default=3)
     p.add_argument("--lr", type=float, default=1e-3)
     p.add_argument("--seed", type=int, default=0)
@@ -111,6 +119,7 @@ def run(args: argparse.Namespace) -> int:
         balance_classes=args.balance_classes,
         hold_simulated=args.hold_simulated,
         per_region=args.per_region,
+        validate_last=args.validate_last,
         epochs=args.epochs,
         lr=args.lr,
         seed=args.seed,
@@ -138,5 +147,32 @@ def run(args: argparse.Namespace) -> int:
         f"on the test splits {summary['simulated_threshold']:.2f}); "
         f"{len(recordings)} real recordings"
     )
+    for name, v in summary["validation"].items():
+        before, tuned = _scores_text(v["before"]), _scores_text(v["tuned"])
+        print(f"{name}, its last {args.validate_last:.0%} ({v['events']:,} events, not fitted): "
+              f"{before} before, {tuned} tuned")  # fmt: skip
     print(f"wrote {args.out / 'model.safetensors'} and {args.out / 'tune.json'}")
     return 0
+
+
+def _scores_text(scores: dict[str, float]) -> str:
+    """``flare removed / light kept / scene kept, combined`` (the defined ones), or the share
+    kept of a recording without a light.
+
+    Examples
+    --------
+    >>> nan = float("nan")
+    >>> _scores_text({"flare removed": 0.5, "light kept": 1.0, "scene kept": nan,
+    ...               "combined": 0.667})
+    'removed 50.0 %, light 100.0 %: 0.667'
+    >>> _scores_text({"flare removed": nan, "light kept": nan, "scene kept": nan, "combined": 0.9})
+    'kept 90.0 %'
+    """
+    import math
+
+    names = {"flare removed": "removed", "light kept": "light", "scene kept": "scene"}
+    parts = [f"{short} {100 * scores[k]:.1f} %" for k, short in names.items()
+             if not math.isnan(scores[k])]  # fmt: skip
+    if not parts:
+        return f"kept {100 * scores['combined']:.1f} %"
+    return ", ".join(parts) + f": {scores['combined']:.3f}"

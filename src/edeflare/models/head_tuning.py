@@ -21,6 +21,13 @@ pairs' rows instead of replacing them:
    standardisation (a context U-Net, frozen, gives their inputs), with Adam on the
    balanced cross-entropy of ``train-head``.
 
+5. **Validation.** With ``validate_last``, the last share of each recording's span is left
+   out of the fit (and a gap of a window and the largest delay before it, so that no
+   window of any windowing holds events of both parts) and scored after it, beside the
+   head before the fit (:func:`validation_scores`): labels of one window of a recording
+   carried over to the rest of it where those of other recordings did not
+   (``experiments/real-labels``), so that is what a user can check.
+
 The layout of the head is unchanged: the tuned model runs, exports and streams as the one
 it came from.
 
@@ -67,7 +74,9 @@ __all__ = [
     "real_rows",
     "recording_inputs",
     "region_labels",
+    "time_split",
     "tune_head",
+    "validation_scores",
 ]
 
 REGIONS = ("unlabelled", "light", "flare", "scene")
@@ -155,12 +164,18 @@ class TuningConfig:
     balance_classes: bool = False
     """Give the real rows' keep class and flare class half of their weight each (each
     class's rows keep their shares within it), as the simulated rows' classes are."""
+    validate_last: float = 0.0
+    """The share of each real recording's span, at its end, left out of the fit and scored
+    after it (0: none)."""
     epochs: int = 3
     lr: float = 1e-3
     batch_size: int = 4_096
     seed: int = 0
 
     def __post_init__(self) -> None:
+        v = self.validate_last
+        if not (isinstance(v, (int, float)) and 0.0 <= v < 1.0):
+            raise EdeflareError(f"validate_last must be in [0, 1), got {v!r}")
         for name in ("real_weight", "lr"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -169,6 +184,50 @@ class TuningConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise EdeflareError(f"{name} must be a positive integer, got {v!r}")
+
+
+def time_split(t: np.ndarray, last: float, gap_us: int) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of the events to fit and to validate on: the last ``last`` share of the span
+    of times ``t`` (sorted) is validated on, and the events less than ``gap_us`` before it
+    are in neither.
+
+    Examples
+    --------
+    The span of 0-90 µs is [0, 91): the cut at 91 - 0.3 * 91 = 63.7, the gap from 48.7.
+
+    >>> fit, val = time_split(np.arange(0, 100, 10), 0.3, 15)
+    >>> np.arange(0, 100, 10)[fit].tolist(), np.arange(0, 100, 10)[val].tolist()
+    ([0, 10, 20, 30, 40], [70, 80, 90])
+    """
+    t = np.asarray(t, np.int64)
+    if not t.size:
+        return np.zeros(0, bool), np.zeros(0, bool)
+    start, end = int(t[0]), int(t[-1]) + 1
+    cut = end - last * (end - start)
+    val = t >= cut
+    return t < cut - gap_us, val
+
+
+def validation_scores(
+    inputs: np.ndarray,
+    codes: np.ndarray,
+    params: dict[str, Any],
+    keep_threshold: float,
+    lit: bool,
+) -> dict[str, float]:
+    """A recording's scores from its events' head inputs ``(DELAYS_US, n, columns)`` and
+    region codes, for the head ``params`` at ``keep_threshold``: flare removed, light kept,
+    scene kept and combined (the share kept where not ``lit``), the mean of the four window
+    phases of the score's protocol (:func:`~edeflare.eval.phases.measure_phases`)."""
+    from ..eval.phases import TERMS, measure_phases, phase_views
+
+    delays, views = phase_views(20_000, 5_000, len(DELAYS_US))
+    assert tuple(delays) == DELAYS_US
+    logits = [head_logits(params, x) for x in inputs]
+    phases = [(logits[a] + logits[b]) / np.float32(2) for a, b in views]
+    regions = (codes == 2, codes == 1, codes == 3) if lit else None
+    row = measure_phases(phases, regions, [keep_threshold])[0]
+    return {name: float(v) for name, v in zip(TERMS, row, strict=True)}
 
 
 def real_rows(
@@ -319,7 +378,8 @@ def tune_head(
         for split, rows in sets.items()
     }
     deflarer = ModelDeflarer(base, runtime="torch", batch_windows=8)
-    labelled = []
+    labelled, held = [], {}
+    gap_us = deflarer.window_us + max(DELAYS_US)
     # in the order of their names, so that the draws do not hang on the order given
     for name, events, size, lights in sorted(recordings, key=lambda r: r[0]):
         path = run / f"real-{name}-{_recording_key(str(base), name, events, lights)}.npz"
@@ -332,6 +392,15 @@ def tune_head(
             with atomic_path(path) as tmp:
                 with open(tmp, "wb") as f:
                     np.savez(f, inputs=inputs, codes=codes)
+        if config.validate_last:
+            fitted, checked = time_split(events["t"], config.validate_last, gap_us)
+            if not (codes[checked] > 0).any():
+                share = f"{config.validate_last:.0%}"
+                raise EdeflareError(f"{name}: no labelled event in the last {share} of its span")
+            before = validation_scores(inputs[:, checked], codes[checked], head.numpy_params(),
+                                       card.keep_threshold, lights is not None)  # fmt: skip
+            held[name] = (inputs[:, checked], codes[checked], lights is not None, before)
+            inputs, codes = inputs[:, fitted], codes[fitted]
         labelled.append(LabelledRecording(name, inputs, codes))
     fit_members(head, columns["train"], train["y"], labelled, config, progress=progress)
     params = head.numpy_params()
@@ -365,6 +434,14 @@ def tune_head(
         "recordings": {
             r.name: {REGIONS[c]: int((r.codes == c).sum()) for c in range(len(REGIONS))}
             for r in labelled
+        },
+        "validation": {
+            name: {
+                "events": int(c.size),
+                "before": before,
+                "tuned": validation_scores(x, c, params, threshold, lit),
+            }
+            for name, (x, c, lit, before) in held.items()
         },
         "train_events": int(train["y"].size),
         "config": dataclasses.asdict(config),
