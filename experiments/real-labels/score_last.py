@@ -1,12 +1,18 @@
-"""Every method on the night recording's last 30 %, the part a within-recording fit did not
-see (README.md, "Within one recording").
+"""Every method on a recording's last 30 %, the part a within-recording fit did not see
+(README.md, "Within one recording"): the night recording, or ``--recording`` with
+``--lights``.
 
 Run::
 
     edeflare tune-head learned TRAIN/*/ --validate-last 0.3 --out RUN \
         --real FAERY_DATA/evt3.raw:benchmarks/night_recording_lights.json
-    python experiments/real-labels/score_last.py RUN/model.safetensors FAERY_DATA \
+    python experiments/real-labels/score_last.py RUN/model.safetensors FAERY_DATA/evt3.raw \
         experiments/real-labels/results/within_last30.json
+    # the DAVIS lamps (their run RUN2 tuned on ../shared/data/real/davis346_flicker_lamps.aedat4)
+    python experiments/real-labels/score_last.py RUN2/model.safetensors \
+        ../shared/data/real/davis346_flicker_lamps.aedat4 \
+        experiments/real-labels/results/within_last30_lamps.json \
+        --lights src/edeflare/assets/lights/davis346_flicker_lamps.json
 """
 
 from __future__ import annotations
@@ -29,10 +35,11 @@ TERMS = ("halo_removed", "ghost_removed", "flare_removed", "light_kept", "backgr
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("tuned", help="the tune-head run's model.safetensors")
-    p.add_argument("faery", type=Path, help="faery 0.7.1's tests/data")
+    p.add_argument("recording", type=Path, help="faery 0.7.1's tests/data/evt3.raw, or another")
     p.add_argument("out", type=Path)
+    p.add_argument("--lights", type=Path, default=LIGHTS, help="its annotation")
     args = p.parse_args()
-    r = read_events(args.faery / "evt3.raw")
+    r = read_events(args.recording)
     _, last = time_split(r.events["t"], 0.3, 35_000)  # tune-head's split, 20 ms windows
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -45,7 +52,7 @@ def main() -> None:
             ("learned", "model", {"weights": "learned"}),
             ("tuned on its first 70 %", "model", {"weights": args.tuned}),
         ]:
-            report = score_recording(crop, [method], lights=LIGHTS, phases=4,
+            report = score_recording(crop, [method], lights=args.lights, phases=4,
                                      method_params={method: params})  # fmt: skip
             rows[label] = {k: getattr(report.rows[0], k) for k in TERMS}
             print(label, {k: round(v, 3) for k, v in rows[label].items()}, flush=True)
