@@ -132,7 +132,7 @@ def _pairs(folder, rng, size=(48, 32)):
             write_dsec_groups(folder / split / f"s{i}.h5", {"input": inp, "gt": scene}, size)
 
 
-def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng):
+def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng, capsys):
     # a head trained to remove the pairs' dense left half, then told by a real recording
     # of the same kind that its dense left half is a light, to be kept
     from edeflare.io.sequence import read_sequence
@@ -206,6 +206,10 @@ def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng)
     assert v["events"] == int(val.sum())
     assert v["before"]["light kept"] < 0.1 and v["tuned"]["light kept"] > 0.9
     assert np.isnan(v["tuned"]["scene kept"]) == np.isnan(v["before"]["scene kept"])
+    # 60 ms split at 90 %: nothing is left to fit before the cut and its 35 ms gap
+    assert main([*args[:6], str(tmp_path / "short"), "--validate-last", "0.9",
+                 "--no-progress"]) == 1  # fmt: skip
+    assert "rec: no labelled event to fit before the last 90 %" in capsys.readouterr().err
 
 
 def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):

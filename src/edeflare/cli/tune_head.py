@@ -149,7 +149,8 @@ def run(args: argparse.Namespace) -> int:
     )
     for name, v in summary["validation"].items():
         before, tuned = _scores_text(v["before"]), _scores_text(v["tuned"])
-        print(f"{name}, its last {args.validate_last:.0%} ({v['events']:,} events, not fitted): "
+        share = f"{100 * args.validate_last:g} %"
+        print(f"{name}, its last {share} ({v['events']:,} events, not fitted): "
               f"{before} before, {tuned} tuned")  # fmt: skip
     print(f"wrote {args.out / 'model.safetensors'} and {args.out / 'tune.json'}")
     return 0

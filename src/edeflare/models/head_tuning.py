@@ -221,8 +221,8 @@ def validation_scores(
     phases of the score's protocol (:func:`~edeflare.eval.phases.measure_phases`)."""
     from ..eval.phases import TERMS, measure_phases, phase_views
 
-    delays, views = phase_views(20_000, 5_000, len(DELAYS_US))
-    assert tuple(delays) == DELAYS_US
+    # DELAYS_US are the windowings of four phases of 20 ms windows with a 5 ms second view
+    _, views = phase_views(20_000, 5_000, len(DELAYS_US))
     logits = [head_logits(params, x) for x in inputs]
     phases = [(logits[a] + logits[b]) / np.float32(2) for a, b in views]
     regions = (codes == 2, codes == 1, codes == 3) if lit else None
@@ -394,9 +394,14 @@ def tune_head(
                     np.savez(f, inputs=inputs, codes=codes)
         if config.validate_last:
             fitted, checked = time_split(events["t"], config.validate_last, gap_us)
+            share = f"{100 * config.validate_last:g} %"
             if not (codes[checked] > 0).any():
-                share = f"{config.validate_last:.0%}"
                 raise EdeflareError(f"{name}: no labelled event in the last {share} of its span")
+            if not (codes[fitted] > 0).any():
+                raise EdeflareError(
+                    f"{name}: no labelled event to fit before the last {share} of its span "
+                    f"and the {gap_us / 1000:g} ms before it (too short to split)"
+                )
             before = validation_scores(inputs[:, checked], codes[checked], head.numpy_params(),
                                        card.keep_threshold, lights is not None)  # fmt: skip
             held[name] = (inputs[:, checked], codes[checked], lights is not None, before)
