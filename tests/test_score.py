@@ -512,3 +512,24 @@ def test_real_detected_regions_score_every_method_within_005_of_the_annotation(
         assert all(s.response_us == 2_000 for s in detected.lights.sources)
     else:  # the blob's pixels settle for about as long as the annotation's 3.3 ms
         assert 2_500 <= detected.lights.sources[0].response_us <= 3_500
+
+
+def test_detected_lights_are_saved_as_an_annotation_that_scores_the_same(tmp_path, capsys):
+    # score --detect-lights --save-lights writes what it found; read back with --lights,
+    # the same regions hold the same events (what tune-head --real REC:JSON then reads)
+    path = _real("davis346_flicker_lamps.aedat4")
+    saved, detected, annotated = tmp_path / "l.json", tmp_path / "d.json", tmp_path / "a.json"
+    assert main(["score", str(path), "--detect-lights", "--max-sources", "2", "-m", "raw",
+                 "--save-lights", str(saved), "--json", str(detected)]) == 0  # fmt: skip
+    assert f"wrote the 2 light(s) found to {saved}" in capsys.readouterr().out
+    d = json.loads(detected.read_text())
+    lights = load_lights(saved, (346, 260))
+    assert json.loads(json.dumps(lights.to_dict())) == d["lights"]
+    assert json.loads(saved.read_text())["method"] == "edeflare score --detect-lights"
+    assert main(["score", str(path), "--lights", str(saved), "-m", "raw",
+                 "--json", str(annotated)]) == 0  # fmt: skip
+    assert json.loads(annotated.read_text())["region_events"] == d["region_events"]
+    assert main(["score", str(path), "--lights", str(saved), "-m", "raw",
+                 "--save-lights", str(tmp_path / "x.json")]) == 1  # fmt: skip
+    assert "--save-lights writes detected lights: give --detect-lights" in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()

@@ -64,6 +64,13 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "(default: measured from the radial event rate around it, the factors as the least "
         "halo: docs/scoring.md)",
     )
+    p.add_argument(
+        "--save-lights",
+        type=Path,
+        metavar="JSON",
+        help="--detect-lights: write the lights found, with their regions, as an annotation "
+        "(--lights JSON, edeflare tune-head --real REC:JSON) to check and edit",
+    )
     p.add_argument("--measure-regions", action="store_true", help=argparse.SUPPRESS)  # the default
     p.add_argument(
         "--window-ms",
@@ -106,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
     window = round(args.window_ms * 1000)
     if window <= 0 or args.max_sources < 1:
         raise EdeflareError("--window-ms and --max-sources must be positive")
+    if args.save_lights is not None and not args.detect_lights:
+        raise EdeflareError("--save-lights writes detected lights: give --detect-lights")
     overrides = {
         k: getattr(args, k)
         for k in ("margin_px", "halo_factor", "ghost_factor")
@@ -134,4 +143,16 @@ def run(args: argparse.Namespace) -> int:
         path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(path) as tmp:
             tmp.write_text(text, encoding="utf-8")
+    if args.save_lights is not None:
+        from ..lights import save_lights
+
+        args.save_lights.parent.mkdir(parents=True, exist_ok=True)
+        save_lights(
+            args.save_lights,
+            report.lights,
+            sensor_size=list(report.sensor_size),
+            recording=str(args.recording),
+            method="edeflare score --detect-lights",
+        )
+        print(f"wrote the {len(report.lights.sources)} light(s) found to {args.save_lights}")
     return 0
