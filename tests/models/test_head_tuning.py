@@ -193,7 +193,7 @@ def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng,
     write_events(longer, np.concatenate(copies), size)
     validated = tmp_path / "validated"
     assert main([args[0], str(trained), str(tmp_path / "sim"), "--real", f"{longer}:{lights}",
-                 *args[5:-1], "--out", str(validated), "--validate-last", "0.3",
+                 *args[7:-1], "--out", str(validated), "--validate-last", "0.3",
                  "--no-progress"]) == 0  # fmt: skip
     summary = json.loads((validated / "tune.json").read_text())
     t = np.concatenate(copies)["t"]
