@@ -52,13 +52,11 @@ from edeflare.models.head_tuning import (  # noqa: E402
     TuningConfig,
     fit_members,
     recording_inputs,
+    recording_scores,
     region_labels,
 )
 from edeflare.models.infer import ModelDeflarer, bundled_weights  # noqa: E402
 from edeflare.models.weights import load_model, read_card  # noqa: E402
-
-PHASES = 4
-"""The windowings (DELAYS) are those the scores run at four phases with a 5 ms second view."""
 
 
 def real_recordings(faery: Path | None) -> list[tuple[str, np.ndarray, tuple, Lights | None]]:
@@ -166,16 +164,9 @@ def score(real_item, params, threshold: float, lights_scored: bool) -> dict[str,
 
 def scores(real_item, params, thresholds, lights_scored: bool) -> list[dict[str, float]]:
     """:func:`score` at each of ``thresholds`` (the head run once)."""
-    from edeflare.eval.phases import measure_phases, phase_views
-
     cols, code, _ = real_item
-    logits = [head_logits(params, c) for c in cols]
-    delays, views = phase_views(20_000, 5_000, PHASES)
-    assert tuple(delays) == DELAYS
-    phases = [(logits[a] + logits[b]) / np.float32(2) for a, b in views]
-    regions = (code == 2, code == 1, code == 3) if lights_scored else None
-    table = measure_phases(phases, regions, thresholds)
-    keys = ("removed", "light", "scene", "combined")  # _held_out.TERMS
+    table = recording_scores(cols, code, params, thresholds, lights_scored)
+    keys = ("removed", "light", "scene", "combined")  # edeflare.eval.phases.TERMS
     return [dict(zip(keys, map(float, row), strict=True)) for row in table]
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 from edeflare import read_events
 from edeflare.eval.score import score_recording
 from edeflare.io import write_events
-from edeflare.models.head_tuning import time_split
+from edeflare.models.head_tuning import time_split, validation_gap_us
 
 LIGHTS = Path(__file__).resolve().parents[2] / "benchmarks" / "night_recording_lights.json"
 TERMS = ("halo_removed", "ghost_removed", "flare_removed", "light_kept", "background_kept",
@@ -40,7 +40,7 @@ def main() -> None:
     p.add_argument("--lights", type=Path, default=LIGHTS, help="its annotation")
     args = p.parse_args()
     r = read_events(args.recording)
-    _, last = time_split(r.events["t"], 0.3, 35_000)  # tune-head's split, 20 ms windows
+    _, last = time_split(r.events["t"], 0.3, validation_gap_us(20_000))  # tune-head's split
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
         crop = Path(tmp) / "last30.h5"

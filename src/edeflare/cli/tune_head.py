@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import shlex
 import sys
 from pathlib import Path
@@ -169,8 +170,6 @@ def _scores_text(scores: dict[str, float]) -> str:
     >>> _scores_text({"flare removed": nan, "light kept": nan, "scene kept": nan, "combined": 0.9})
     'kept 90.0 %'
     """
-    import math
-
     names = {"flare removed": "removed", "light kept": "light", "scene kept": "scene"}
     parts = [f"{short} {100 * scores[k]:.1f} %" for k, short in names.items()
              if not math.isnan(scores[k])]  # fmt: skip

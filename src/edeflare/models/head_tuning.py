@@ -73,9 +73,11 @@ __all__ = [
     "fit_members",
     "real_rows",
     "recording_inputs",
+    "recording_scores",
     "region_labels",
     "time_split",
     "tune_head",
+    "validation_gap_us",
     "validation_scores",
 ]
 
@@ -208,6 +210,37 @@ def time_split(t: np.ndarray, last: float, gap_us: int) -> tuple[np.ndarray, np.
     return t < cut - gap_us, val
 
 
+def validation_gap_us(window_us: int) -> int:
+    """What :func:`tune_head` leaves out before a validated part: a window and the largest
+    delay, so that no window of any windowing of :data:`DELAYS_US` holds events of both.
+
+    >>> validation_gap_us(20_000)
+    35000
+    """
+    return int(window_us) + max(DELAYS_US)
+
+
+def recording_scores(
+    inputs: np.ndarray,
+    codes: np.ndarray,
+    params: dict[str, Any],
+    thresholds: Sequence[float],
+    lit: bool,
+) -> np.ndarray:
+    """A recording's scores ``(thresholds, 4)`` from its events' head inputs ``(DELAYS_US,
+    n, columns)`` and region codes, for the head ``params``: flare removed, light kept,
+    scene kept and combined (the share kept where not ``lit``), each the mean of the four
+    window phases of the score's protocol (:func:`~edeflare.eval.phases.measure_phases`)."""
+    from ..eval.phases import measure_phases, phase_views
+
+    # DELAYS_US are the windowings of four phases of 20 ms windows with a 5 ms second view
+    _, views = phase_views(20_000, 5_000, len(DELAYS_US))
+    logits = [head_logits(params, x) for x in inputs]
+    phases = [(logits[a] + logits[b]) / np.float32(2) for a, b in views]
+    regions = (codes == 2, codes == 1, codes == 3) if lit else None
+    return measure_phases(phases, regions, thresholds)
+
+
 def validation_scores(
     inputs: np.ndarray,
     codes: np.ndarray,
@@ -215,18 +248,11 @@ def validation_scores(
     keep_threshold: float,
     lit: bool,
 ) -> dict[str, float]:
-    """A recording's scores from its events' head inputs ``(DELAYS_US, n, columns)`` and
-    region codes, for the head ``params`` at ``keep_threshold``: flare removed, light kept,
-    scene kept and combined (the share kept where not ``lit``), the mean of the four window
-    phases of the score's protocol (:func:`~edeflare.eval.phases.measure_phases`)."""
-    from ..eval.phases import TERMS, measure_phases, phase_views
+    """:func:`recording_scores` at ``keep_threshold``, by name
+    (:data:`~edeflare.eval.phases.TERMS`)."""
+    from ..eval.phases import TERMS
 
-    # DELAYS_US are the windowings of four phases of 20 ms windows with a 5 ms second view
-    _, views = phase_views(20_000, 5_000, len(DELAYS_US))
-    logits = [head_logits(params, x) for x in inputs]
-    phases = [(logits[a] + logits[b]) / np.float32(2) for a, b in views]
-    regions = (codes == 2, codes == 1, codes == 3) if lit else None
-    row = measure_phases(phases, regions, [keep_threshold])[0]
+    row = recording_scores(inputs, codes, params, [keep_threshold], lit)[0]
     return {name: float(v) for name, v in zip(TERMS, row, strict=True)}
 
 
@@ -379,7 +405,8 @@ def tune_head(
     }
     deflarer = ModelDeflarer(base, runtime="torch", batch_windows=8)
     labelled, held = [], {}
-    gap_us = deflarer.window_us + max(DELAYS_US)
+    gap_us = validation_gap_us(deflarer.window_us)
+    before_params = head.numpy_params() if config.validate_last else None
     # in the order of their names, so that the draws do not hang on the order given
     for name, events, size, lights in sorted(recordings, key=lambda r: r[0]):
         path = run / f"real-{name}-{_recording_key(str(base), name, events, lights)}.npz"
@@ -402,7 +429,7 @@ def tune_head(
                     f"{name}: no labelled event to fit before the last {share} of its span "
                     f"and the {gap_us / 1000:g} ms before it (too short to split)"
                 )
-            before = validation_scores(inputs[:, checked], codes[checked], head.numpy_params(),
+            before = validation_scores(inputs[:, checked], codes[checked], before_params,
                                        card.keep_threshold, lights is not None)  # fmt: skip
             held[name] = (inputs[:, checked], codes[checked], lights is not None, before)
             inputs, codes = inputs[:, fitted], codes[fitted]
