@@ -345,3 +345,69 @@ def test_uint8_and_float_frames_give_the_same_events(rng):
         [(i * 1000, f.astype(np.float32)) for i, f in enumerate(frames)],
     )
     assert a.size > 0 and a.tobytes() == b.tobytes()
+
+
+# --------------------------------------------------------------------------- warm start
+
+
+def test_ideal_warm_start_fires_a_sub_threshold_ramp_in_proportion():
+    # a rise of 0.06 in log intensity with C_on = 0.2: from a cold start no pixel reaches
+    # its ON threshold; from a warm one (log - ref uniform in (0, 0.2) where the light
+    # rises) the pixels within 0.06 of it do, 0.06 / 0.2 = 30 % of them, once each, all ON
+    shape = (100, 100)
+    params = IdealParams(c_on=0.2, c_off=0.2, log_eps=1.0)
+    cold = run(IdealSimulator((100, 100), params, rng=1), log_ramp(0.06, shape=shape))
+    warm = run(
+        IdealSimulator((100, 100), params, rng=1, warm_start=True), log_ramp(0.06, shape=shape)
+    )
+    assert cold.size == 0
+    n = shape[0] * shape[1]
+    assert abs(warm.size / n - 0.3) <= 4 * math.sqrt(0.3 * 0.7 / n)
+    assert (warm["p"] == 1).all()
+    assert per_pixel(warm, (100, 100)).max() == 1
+
+
+def test_ideal_warm_start_fires_the_long_run_count():
+    # a rise of 1.3 is 6.5 thresholds of 0.2: a cold start fires exactly 6 a pixel
+    # (test_ideal_log_ramp_gives_exact_count_and_times), a warm one 6 or 7, 6.5 on average
+    sim = IdealSimulator((40, 40), IdealParams(c_on=0.2, c_off=0.2), rng=2, warm_start=True)
+    counts = per_pixel(run(sim, log_ramp(1.3, shape=(40, 40))), (40, 40))
+    assert set(np.unique(counts)) == {6, 7}
+    assert abs(counts.mean() - 6.5) <= 4 * math.sqrt(0.25 / counts.size)
+
+
+def test_ideal_warm_start_falling_uses_the_off_side():
+    # a fall of 0.06 with C_off = 0.3: 0.06 / 0.3 = 20 % of the pixels fire one OFF event
+    params = IdealParams(c_on=0.2, c_off=0.3, log_eps=1.0)
+    frames = [(t, np.exp(np.log(21.0) - 0.06 * t / 100_000) - 1.0 + np.zeros((80, 80)))
+              for t in range(0, 100_001, 1000)]  # fmt: skip
+    ev = run(IdealSimulator((80, 80), params, rng=5, warm_start=True), frames)
+    assert (ev["p"] == 0).all()
+    assert abs(ev.size / 6400 - 0.2) <= 4 * math.sqrt(0.2 * 0.8 / 6400)
+
+
+def test_voltmeter_warm_start_residuals_by_the_first_change():
+    still = VoltmeterSimulator((64, 64), rng=3, warm_start=True)
+    cold = VoltmeterSimulator((64, 64), rng=3)
+    for sim in (still, cold):  # 1 µs of constant light: the dynamics barely move r
+        run(sim, video([40.0, 40.0], shape=(64, 64), dt_us=1))
+    assert np.abs(cold.residual).max() < 0.05
+    r = still.residual.ravel()
+    assert stats.kstest(r, stats.uniform(loc=-1, scale=2).cdf).pvalue > 1e-3
+    rising = VoltmeterSimulator((64, 64), rng=3, warm_start=True)
+    run(rising, video([40.0, 40.001], shape=(64, 64), dt_us=1))
+    assert (rising.residual > 0).all() and (rising.residual < 1).all()
+    # the per-pixel random streams start the same either way, and a seed repeats
+    fresh = (VoltmeterSimulator((64, 64), rng=3, warm_start=w) for w in (False, True))
+    assert np.array_equal(*(f._state for f in fresh))
+    a, b = (VoltmeterSimulator((16, 16), rng=4, warm_start=True) for _ in range(2))
+    frames = video([40.0, 44.0, 48.0], shape=(16, 16))
+    assert np.array_equal(run(a, frames), run(b, frames))
+
+
+def test_make_simulator_passes_the_warm_start():
+    frames = video([40.0, 40.001], shape=(8, 8), dt_us=1)
+    volt = make_simulator("voltmeter", (8, 8), rng=0, warm_start=True)
+    run(volt, frames)
+    assert (volt.residual > 0).all()
+    assert make_simulator("ideal", (8, 8), rng=0, warm_start=True).warm_start is True

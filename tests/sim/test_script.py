@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -155,3 +156,17 @@ def test_invalid_scripts_are_rejected():
         FlareScript(gt_lens="perfect")
     with pytest.raises(SimError, match="scale must be"):
         ScriptConfig(scale=(1.5, 0.8))
+
+
+def test_warm_start_reaches_the_sensor_and_round_trips_and_is_left_out_while_off():
+    cold = draw_script(rng=4)
+    warm = draw_script(ScriptConfig(warm_start=True), rng=4)
+    assert cold.sensor.warm_start is False and warm.sensor.warm_start is True
+    # the same draws otherwise: the flag costs no random number
+    as_cold = dataclasses.replace(warm.sensor, warm_start=False)
+    assert dataclasses.replace(warm, sensor=as_cold) == cold
+    assert "warm_start" not in cold.to_dict()["sensor"]
+    assert warm.to_dict()["sensor"]["warm_start"] is True
+    assert FlareScript.from_json(warm.to_json()) == warm
+    with pytest.raises(SimError, match="warm_start must be a bool"):
+        ScriptConfig(warm_start=1)

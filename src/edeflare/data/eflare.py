@@ -131,13 +131,15 @@ class FlareConfig:
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (:meth:`from_dict` round-trips it).
 
-        ``sensing`` and ``surround`` are left out while off, so recipes keep the dicts
-        and digests they had before the stages existed.
+        ``sensing``, ``surround`` and the script's ``warm_start`` are left out while off,
+        so recipes keep the dicts and digests they had before they existed.
         """
         optional = ("sensing", "surround")
         fields = [f.name for f in dataclasses.fields(self) if f.name not in optional]
         d: dict[str, Any] = {name: getattr(self, name) for name in fields}
         d["script"] = dataclasses.asdict(self.script)
+        if not self.script.warm_start:  # left out while off, as the optional stages
+            del d["script"]["warm_start"]
         if self.sensing.enabled:
             d["sensing"] = self.sensing.to_dict()
         if self.surround.enabled:

@@ -4,7 +4,8 @@ A script's :class:`~edeflare.sim.script.SensorSpec` is one camera. Every video
 of a sample (flare, light source, background, or the sums of the forward
 model) goes through a simulator of that camera: the same model and parameters
 and, for the ideal model, the same per-pixel thresholds (derived from
-``spec.seed``), each with its own random stream (one recording each).
+``spec.seed``), each with its own random stream (one recording each), and all
+started cold or warm as ``spec.warm_start`` says (:mod:`edeflare.sim.dvs`).
 """
 
 from __future__ import annotations
@@ -37,15 +38,16 @@ def sensor_pair(
     flare_seq, light_seq, camera_seq = np.random.SeedSequence(spec.seed).spawn(3)
     flare_rng = np.random.default_rng(flare_seq)
     light_rng = np.random.default_rng(light_seq)
+    warm = spec.warm_start
     if spec.model == "voltmeter":
         return (
-            VoltmeterSimulator(size, spec.voltmeter, rng=flare_rng),
-            VoltmeterSimulator(size, spec.voltmeter, rng=light_rng),
+            VoltmeterSimulator(size, spec.voltmeter, rng=flare_rng, warm_start=warm),
+            VoltmeterSimulator(size, spec.voltmeter, rng=light_rng, warm_start=warm),
         )
     thresholds = draw_thresholds(size, spec.ideal, rng=np.random.default_rng(camera_seq))
     return (
-        IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=flare_rng),
-        IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=light_rng),
+        IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=flare_rng, warm_start=warm),
+        IdealSimulator(size, spec.ideal, thresholds=thresholds, rng=light_rng, warm_start=warm),
     )
 
 
@@ -70,7 +72,11 @@ def camera_simulator(
     size = check_sensor_size(sensor_size)
     gen = make_rng(rng)
     if spec.model == "voltmeter":
-        return make_simulator("voltmeter", size, spec.voltmeter, rng=gen)
+        return make_simulator(
+            "voltmeter", size, spec.voltmeter, rng=gen, warm_start=spec.warm_start
+        )
     camera_seq = np.random.SeedSequence(spec.seed).spawn(3)[2]
     thresholds = draw_thresholds(size, spec.ideal, rng=np.random.default_rng(camera_seq))
-    return make_simulator("ideal", size, spec.ideal, thresholds=thresholds, rng=gen)
+    return make_simulator(
+        "ideal", size, spec.ideal, thresholds=thresholds, rng=gen, warm_start=spec.warm_start
+    )

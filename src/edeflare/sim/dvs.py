@@ -8,6 +8,21 @@ The first frame only initialises the state. Both are seeded and vectorised
 (compiled loops over pixels, parallel over pixel ranges); their output does not
 depend on the number of threads.
 
+**Cold or warm start.** By default (``warm_start=False``, the original programs'
+behaviour) every pixel starts exactly at its reference level, so a pixel whose log
+intensity changes by less than one threshold over the simulated span never fires.
+A real sensor has been running long before any recording starts, and a pixel under
+a steady change (a slowly drifting camera, the slope of a lamp's halo) sits anywhere
+between its reference and the threshold it moves towards, uniformly: that change fires
+it at its long-run rate from the first instant. ``warm_start=True`` starts each pixel
+so, by the sign of its change over the first frame interval: DVS-Voltmeter's carried
+residual uniform in ``(0, 1)`` threshold units where the light rises, ``(-1, 0)`` where
+it falls and ``(-1, 1)`` where it holds; the ideal model's log intensity over its
+reference uniform in ``(0, C_on)``, ``(-C_off, 0)`` or ``(-C_off, C_on)``. A rise of
+``d`` (log units) over a span then fires ``d / C_on`` events per pixel on average, the
+long-run rate, where a cold start fires ``floor(d / C_on)``. It matters where change is
+slow: the far scattered light of a steady lamp, a dim street under a drifting camera.
+
 DVS-Voltmeter (Lin et al., ECCV 2022)
 -------------------------------------
 Between frames with intensities :math:`L_p` and :math:`L_n` (step
@@ -308,10 +323,19 @@ class VoltmeterSimulator(_FrameSimulator):
     params : VoltmeterParams, optional
         Defaults to the DAVIS346 calibration.
     rng : numpy.random.Generator or int, optional
-        Seed of the per-pixel random streams (one 64-bit draw).
+        Seed of the per-pixel random streams (one 64-bit draw; with ``warm_start``,
+        then the starting residuals).
+    warm_start : bool
+        Start each pixel's residual uniformly between 0 and the barrier its first
+        change moves it towards instead of at 0 (see the module docstring).
 
     Examples
     --------
+    >>> sim = VoltmeterSimulator((4, 2), rng=0, warm_start=True)
+    >>> _ = sim.feed(np.full((2, 4), 40.0), 0)
+    >>> _ = sim.feed(np.full((2, 4), 40.1), 1)   # rising: residuals in (0, 1)
+    >>> bool((sim.residual > 0).all() and (sim.residual < 1).all())
+    True
     >>> sim = VoltmeterSimulator((4, 2), rng=0)
     >>> sim.feed(np.full((2, 4), 40.0), 0).size
     0
@@ -326,6 +350,7 @@ class VoltmeterSimulator(_FrameSimulator):
         params: VoltmeterParams | None = None,
         *,
         rng: np.random.Generator | int | None = None,
+        warm_start: bool = False,
     ) -> None:
         super().__init__(sensor_size)
         if params is not None and not isinstance(params, VoltmeterParams):
@@ -333,9 +358,12 @@ class VoltmeterSimulator(_FrameSimulator):
         self.params = params or VoltmeterParams()
         width, height = self.sensor_size
         n = width * height
-        seed = int(make_rng(rng).integers(0, 2**63))
+        gen = make_rng(rng)
+        seed = int(gen.integers(0, 2**63))
         self._state = seed_states(n, seed)
         self._residual = np.zeros(n, dtype=np.float64)
+        # the warm start's draws, taken at the first interval (None: cold, or done)
+        self._warm = gen.random(n) if warm_start else None
         # The previous frame, stored exactly in float32 while frames are uint8, uint16 or
         # float32 (less memory traffic in the per-pixel pass), in float64 once one is float64.
         self._prev = np.zeros(n, dtype=np.float32)
@@ -358,6 +386,9 @@ class VoltmeterSimulator(_FrameSimulator):
     def _interval(self, flat: np.ndarray, t0: float, t1: float) -> np.ndarray:
         if flat.dtype == np.float64 and self._prev.dtype != np.float64:
             self._prev = self._prev.astype(np.float64)
+        if self._warm is not None:
+            self._residual[:] = _warm_offsets(self._warm, flat - self._prev, 1.0, 1.0)
+            self._warm = None
         t, x, y, p, *self._buffers = voltmeter_frame(
             self._prev, flat, self._residual, self._state, t0, t1, self._k, self._exact,
             self._mark, *self._buffers, self.sensor_size[0],
@@ -376,10 +407,25 @@ class IdealSimulator(_FrameSimulator):
         Per-pixel thresholds (see :func:`draw_thresholds`); drawn from ``rng``
         when omitted.
     rng : numpy.random.Generator or int, optional
-        Seeds the thresholds (when drawn here), hot pixels and noise.
+        Seeds the thresholds (when drawn here), hot pixels, the warm start and noise.
+    warm_start : bool
+        Start each pixel's log intensity uniformly between its reference and the
+        threshold its first change moves it towards instead of on the reference (see
+        the module docstring).
 
     Examples
     --------
+    A rise of 0.05 in log intensity, a tenth of a threshold, fires nothing from a cold
+    start, and a tenth of the pixels from a warm one:
+
+    >>> flat = np.full((100, 100), 10.0)
+    >>> def fired(warm):
+    ...     sim = IdealSimulator((100, 100), IdealParams(c_on=0.5, c_off=0.5), rng=0,
+    ...                          warm_start=warm)
+    ...     _ = sim.feed(flat, 0)
+    ...     return sim.feed(np.exp(np.log(flat + 1.0) + 0.05) - 1.0, 1000).size
+    >>> fired(False), 900 < fired(True) < 1100
+    (0, True)
     >>> sim = IdealSimulator((1, 1), IdealParams(c_on=0.5, c_off=0.5, log_eps=1e-9))
     >>> _ = sim.feed(np.array([[10.0]]), 0)
     >>> ev = sim.feed(np.array([[10.0 * np.exp(1.2)]]), 1000)
@@ -394,8 +440,10 @@ class IdealSimulator(_FrameSimulator):
         *,
         thresholds: tuple[np.ndarray, np.ndarray] | None = None,
         rng: np.random.Generator | int | None = None,
+        warm_start: bool = False,
     ) -> None:
         super().__init__(sensor_size)
+        self.warm_start = bool(warm_start)
         if params is not None and not isinstance(params, IdealParams):
             raise SimError(f"params must be IdealParams, got {type(params).__name__}")
         self.params = params or IdealParams()
@@ -419,14 +467,24 @@ class IdealSimulator(_FrameSimulator):
         self._log = np.zeros(n, dtype=np.float64)
         self._ref = np.zeros(n, dtype=np.float64)
         self._last = np.full(n, -np.inf, dtype=np.float64)
+        self._warm = False
         self._buffers = list(new_buffers())
 
     def _init(self, flat: np.ndarray) -> None:
         np.log(flat.astype(np.float64) + self.params.log_eps, out=self._log)
         self._ref[:] = self._log
+        self._warm = self.warm_start  # the reference moves at the first interval
+
+    def _warm_up(self, flat: np.ndarray) -> None:
+        change = np.log(flat.astype(np.float64) + self.params.log_eps) - self._log
+        u = self._rng.random(self._ref.size)
+        self._ref -= _warm_offsets(u, change, self._c_on, self._c_off)
+        self._warm = False
 
     def _interval(self, flat: np.ndarray, t0: float, t1: float) -> np.ndarray:
         p = self.params
+        if self._warm:
+            self._warm_up(flat)
         t, x, y, pol, *self._buffers = esim_frame(
             self._log, flat, self._ref, self._last, self._c_on, self._c_off,
             p.log_eps, p.refractory_us, t0, t1, *self._buffers, self.sensor_size[0],
@@ -464,6 +522,22 @@ class IdealSimulator(_FrameSimulator):
         return out[np.argsort(out["t"], kind="stable")]
 
 
+def _warm_offsets(
+    u: np.ndarray, change: np.ndarray, up: np.ndarray | float, down: np.ndarray | float
+) -> np.ndarray:
+    """A warm start's offsets from the reference: ``u`` (uniform in [0, 1)) of the way to
+    the threshold ``up`` where ``change`` rises, to ``-down`` where it falls, and across
+    both where it holds.
+
+    Examples
+    --------
+    >>> _warm_offsets(np.full(3, 0.5), np.array([1.0, -1.0, 0.0]), 0.2, 0.3).tolist()
+    [0.1, -0.15, -0.04999999999999999]
+    """
+    u = np.asarray(u, np.float64)
+    return np.where(change > 0, u * up, np.where(change < 0, -u * down, u * (up + down) - down))
+
+
 def make_simulator(
     model: str,
     sensor_size: SensorSize,
@@ -471,8 +545,10 @@ def make_simulator(
     *,
     thresholds: tuple[np.ndarray, np.ndarray] | None = None,
     rng: np.random.Generator | int | None = None,
+    warm_start: bool = False,
 ) -> VoltmeterSimulator | IdealSimulator:
-    """Create a simulator by name: ``"voltmeter"`` or ``"ideal"``.
+    """Create a simulator by name: ``"voltmeter"`` or ``"ideal"`` (``warm_start``: see
+    the module docstring).
 
     Examples
     --------
@@ -483,8 +559,10 @@ def make_simulator(
     if model == "voltmeter":
         if thresholds is not None:
             raise SimError("thresholds apply to the ideal simulator only")
-        return VoltmeterSimulator(sensor_size, params, rng=rng)  # type: ignore[arg-type]
-    return IdealSimulator(sensor_size, params, thresholds=thresholds, rng=rng)  # type: ignore[arg-type]
+        return VoltmeterSimulator(sensor_size, params, rng=rng, warm_start=warm_start)  # type: ignore[arg-type]
+    return IdealSimulator(  # type: ignore[arg-type]
+        sensor_size, params, thresholds=thresholds, rng=rng, warm_start=warm_start
+    )
 
 
 def simulate_frames(

@@ -150,16 +150,23 @@ class LightSpec:
 
 @dataclass(frozen=True)
 class SensorSpec:
-    """The event sensor of a sample: one draw shared by the flare and light videos."""
+    """The event sensor of a sample: one draw shared by the flare and light videos.
+
+    ``warm_start``: every simulator of the sample starts each pixel between its
+    thresholds rather than on its reference (:mod:`edeflare.sim.dvs`).
+    """
 
     model: str = "voltmeter"
     voltmeter: VoltmeterParams = field(default_factory=VoltmeterParams)
     ideal: IdealParams = field(default_factory=IdealParams)
     seed: int = 0
+    warm_start: bool = False
 
     def __post_init__(self) -> None:
         check_choice("model", self.model, ("voltmeter", "ideal"))
         _check_seed("sensor seed", self.seed)
+        if not isinstance(self.warm_start, bool):
+            raise SimError(f"warm_start must be a bool, got {self.warm_start!r}")
 
     @property
     def params(self) -> VoltmeterParams | IdealParams:
@@ -280,6 +287,8 @@ class FlareScript:
                 "voltmeter": self.sensor.voltmeter.to_dict(),
                 "ideal": self.sensor.ideal.to_dict(),
                 "seed": int(self.sensor.seed),
+                # left out while off: older scripts read the same, and their files stay
+                **({"warm_start": True} if self.sensor.warm_start else {}),
             },
             "flare7k": None if self.flare7k is None else _plain(self.flare7k),
             "gt_lens": self.gt_lens,
@@ -424,6 +433,7 @@ class ScriptConfig:
     k1_low_probability: float = 0.5
     ideal_threshold: tuple[float, float] = (0.15, 0.35)
     ideal_threshold_sigma: float = 0.03
+    warm_start: bool = False
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -434,6 +444,9 @@ class ScriptConfig:
                 object.__setattr__(self, "waveforms", tuple(value))
             elif f.name == "sensor_model":
                 check_choice("sensor_model", value, ("voltmeter", "ideal"))
+            elif f.name == "warm_start":
+                if not isinstance(value, bool):
+                    raise SimError(f"warm_start must be a bool, got {value!r}")
             elif f.name.endswith("probability"):
                 check_range(f.name, value, 0, 1)
             elif isinstance(f.default, tuple):
@@ -550,6 +563,7 @@ def draw_script(
         voltmeter=VoltmeterParams(k=(k1, *DVS346_K[1:])),
         ideal=IdealParams(c_on=c, c_off=c, c_sigma=cfg.ideal_threshold_sigma),
         seed=int(g.integers(0, 2**63)),
+        warm_start=cfg.warm_start,
     )
     flare7k = None
     if flare7k_names:
