@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -135,3 +136,60 @@ def test_light_cells_count_each_cell_and_refuse_events_off_the_sensor():
     for off in (make_events([0], [30], [0], [1]), make_events([0], [0], [21], [1])):
         with pytest.raises(ValueError, match="outside the 30x21 sensor"):
             light_cells(off, (30, 21), 20_000, cell=4)
+
+
+def _block(per_pixel: int, t0: int, x0: int = 40, y0: int = 16, side: int = 16):
+    """A ``side`` x ``side`` block whose pixels fire ``per_pixel`` events each in 20 ms."""
+    from edeflare.events import make_events
+
+    yy, xx = np.mgrid[y0 : y0 + side, x0 : x0 + side]
+    n = per_pixel * xx.size
+    return make_events(t0 + np.arange(n) * 20_000 // n, np.tile(xx.ravel(), per_pixel),
+                       np.tile(yy.ravel(), per_pixel), np.ones(n))  # fmt: skip
+
+
+def test_light_test_summary_counts_lit_windows_and_rates_the_brightest_region():
+    from edeflare.events import iter_time_windows, merge_events
+    from edeflare.lights import light_test_summary
+
+    # window 1: a light (1 event per pixel and ms); window 2: the same block at 0.3, below
+    # the cell rate, beside a hot pixel firing 2,000 events, which must not be "brightest";
+    # window 3: empty (not counted); window 4: 0.5 per pixel and ms
+    hot = _block(1, 20_000, x0=5, y0=50, side=1)
+    hot = np.repeat(hot, 2000)
+    hot["t"] = 20_000 + np.arange(2000) * 10
+    ev = merge_events(_block(20, 0), _block(6, 20_000), hot, _block(10, 60_000))
+    s = light_test_summary(iter_time_windows(ev, 20_000), (96, 64))
+    assert (s.windows, s.with_light) == (3, 1)
+    assert s.share == pytest.approx(1 / 3)
+    # the median of 1.0, 0.3, 0.5 (over the covered span: to its last event, a few µs short)
+    assert s.brightest_rate == pytest.approx(0.5, rel=1e-3)
+    assert s.lines(20_000)[0] == "light test  a light in 1 of 3 windows of 20 ms"
+
+
+def test_light_test_summary_refuses_a_bad_window_and_handles_no_events():
+    from edeflare.lights import light_test_summary
+
+    with pytest.raises(ParameterError, match="window_us must be positive"):
+        light_test_summary([], (8, 8), 0)
+    s = light_test_summary([], (8, 8))
+    assert (s.windows, s.with_light, s.brightest_rate) == (0, 0, None)
+    assert np.isnan(s.share)
+    assert s.lines(20_000) == ["light test  a light in 0 of 0 windows of 20 ms"]
+
+
+def test_info_lights_on_real_recordings(real_data, capsys):
+    from edeflare.cli import main
+
+    # the Gen3 light passes the test in each of its four windows; the Gen4.1 street's
+    # dense texture in neither of its two, though it passes the cell rate
+    assert main(["info", str(real_data / "prophesee_gen3_rotating_light.raw"), "--lights"]) == 0
+    out = capsys.readouterr().out
+    assert "light test  a light in 4 of 4 windows of 20 ms" in out
+    rate = float(re.search(r"brightest   ([0-9.]+) events per firing pixel", out).group(1))
+    assert rate > 0.55
+    assert main(["info", str(real_data / "prophesee_gen41_street.raw"), "--lights"]) == 0
+    assert "a light in 0 of 2 windows" in capsys.readouterr().out
+    assert main(["info", str(real_data / "prophesee_gen41_street.raw"), "--lights",
+                 "--window-ms", "-1"]) == 1  # fmt: skip
+    assert "--window-ms must be positive" in capsys.readouterr().err

@@ -4,15 +4,19 @@ a model's weights, its card."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
 from pathlib import Path
+
+import numpy as np
 
 from .._progress import progress_bar
 from ..errors import EdeflareError
 from ._common import GROUP_HELP, SIZE_HELP, sensor_size_arg
 
 HELP = (
-    "Describe an event file (format, sensor, events, span, rate, ON fraction), or a "
-    "model's weights (.safetensors, .onnx or a bundled model's name: its card)."
+    "Describe an event file (format, sensor, events, span, rate, ON fraction; with --lights, "
+    "in how many windows the models' light test finds a light), or a model's weights "
+    "(.safetensors, .onnx or a bundled model's name: its card)."
 )
 _WEIGHTS = (".safetensors", ".onnx")
 
@@ -23,12 +27,24 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument("file", type=Path)
     p.add_argument("--sensor-size", type=sensor_size_arg, metavar="WxH", help=SIZE_HELP)
     p.add_argument("--group", help=GROUP_HELP)
+    p.add_argument(
+        "--lights",
+        action="store_true",
+        help="also run the light test that the mask models' priors and light features read, "
+        "window by window: in how many windows it finds a light, and how fast each window's "
+        "brightest compact region fires against the rate it asks of a light",
+    )
+    p.add_argument(
+        "--window-ms", type=float, default=20.0, help="--lights: the windows (ms; the models': 20)"
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Stream the file once and print its figures (or print a weights file's card)."""
+    from ..events import iter_chunk_windows
     from ..io import open_events
+    from ..lights import light_test_summary
     from ..models.infer import bundled_weights
 
     if args.file.suffix.lower() in _WEIGHTS:
@@ -40,16 +56,33 @@ def run(args: argparse.Namespace) -> int:
             pass  # not one: the event reader names the missing file
 
     src = open_events(args.file, args.sensor_size, group=args.group)
+    window_us = round(args.window_ms * 1000)
+    if args.lights and window_us <= 0:
+        raise EdeflareError(f"--window-ms must be positive, got {args.window_ms}")
     n = n_on = 0
     first = last = None
+    lights = None
     with progress_bar(total=src.n_events, unit="ev", unit_scale=True, leave=False) as bar:
-        for chunk in src.chunks():
-            n += chunk.size
-            n_on += int(chunk["p"].sum())
-            if first is None:
-                first = int(chunk["t"][0])
-            last = int(chunk["t"][-1])
-            bar.update(chunk.size)
+
+        def counted() -> Iterator[np.ndarray]:
+            nonlocal n, n_on, first, last
+            for chunk in src.chunks():
+                n += chunk.size
+                n_on += int(chunk["p"].sum())
+                if first is None and chunk.size:
+                    first = int(chunk["t"][0])
+                if chunk.size:
+                    last = int(chunk["t"][-1])
+                bar.update(chunk.size)
+                yield chunk
+
+        if args.lights:
+            lights = light_test_summary(
+                iter_chunk_windows(counted(), window_us), src.sensor_size, window_us
+            )
+        else:
+            for _ in counted():
+                pass
     width, height = src.sensor_size
     print(f"file        {src.path}")
     print(f"format      {src.format}")
@@ -63,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
         rate = n / (span / 1e6) if span else float("inf")
         print(f"rate        {rate / 1e6:.3f} Mev/s")
         print(f"ON fraction {n_on / n:.4f}")
+    if lights is not None:
+        print("\n".join(lights.lines(window_us)))
     return 0
 
 

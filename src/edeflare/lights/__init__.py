@@ -13,7 +13,8 @@
   ghost reach, from the radial event rate around it; :func:`light_response`: how
   long a moving light's pixels keep firing after it has passed;
 - :func:`window_lights`: the cells of a window that hold a light, the cheap test
-  a mask model's rules (:mod:`edeflare.rules`) make in every window.
+  a mask model's rules (:mod:`edeflare.rules`) make in every window;
+  :func:`light_test_summary`: in how many windows of a recording it finds one.
 
 The scorer (:mod:`edeflare.eval.score`), the real-capture pairing
 (:mod:`edeflare.realworld`) and the model's rules all use these.
@@ -34,12 +35,14 @@ from .reach import FlareReach, flare_reach, measure_regions
 from .response import LightResponse, light_response
 from .shapes import Circle, Polygon, Shape, light_mask, parse_light
 from .source import Lights, LightSource, bundled_lights, load_lights, parse_lights, save_lights
+from .summary import LightTestSummary, light_test_summary
 
 __all__ = [
     "Circle",
     "FlareReach",
     "LightResponse",
     "LightSource",
+    "LightTestSummary",
     "Lights",
     "Polygon",
     "Shape",
@@ -51,6 +54,7 @@ __all__ = [
     "light_mask",
     "light_radius",
     "light_response",
+    "light_test_summary",
     "load_lights",
     "measure_regions",
     "parse_light",

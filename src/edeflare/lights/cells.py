@@ -40,7 +40,9 @@ blob 1.15-1.83. Dense scene that passes the cell rate fires slower: a daytime st
 had turned every prior on and the light-free shift off. In the simulator's night streets
 at three sensor sizes, all but a few of the 2,399 groups under this rate hold none of
 the light source's events (the study ``halo-prior``, ``docs/studies.md``). The margin
-below the DAVIS lamps is small: a lamp dimmer than theirs would lose its priors."""
+below the DAVIS lamps is small: a lamp dimmer than theirs would lose its priors. A steady
+lamp fires far slower: the night recording's (faery's ``evt3.raw``) 0.065, found in none
+of its windows (the study ``light-test``)."""
 
 MIN_LIGHT_RADIUS = 2.0
 """The thinnest light, in its radius: a solid 3x3 block. A hot pixel firing tens of
