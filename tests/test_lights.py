@@ -193,3 +193,53 @@ def test_info_lights_on_real_recordings(real_data, capsys):
     assert main(["info", str(real_data / "prophesee_gen41_street.raw"), "--lights",
                  "--window-ms", "-1"]) == 1  # fmt: skip
     assert "--window-ms must be positive" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sparse_filters_give_scipys_numbers_exactly(seed):
+    from scipy import ndimage
+
+    from edeflare.lights.detect import gaussian_on_support, median3
+
+    rng = np.random.default_rng(seed)
+    h, w = (72, 128) if seed % 2 else (260, 346)
+    counts = np.zeros((h, w))
+    lone = rng.integers(0, h * w, 200)  # isolated events and hot pixels, borders included
+    counts.flat[lone] = rng.integers(1, 60, lone.size)
+    cy, cx = rng.integers(0, h), rng.integers(0, w)  # a light, possibly cut by the frame
+    yy, xx = np.mgrid[:h, :w]
+    counts[np.hypot(yy - cy, xx - cx) <= rng.uniform(2, 12)] += rng.integers(1, 9)
+    median = median3(counts)
+    assert np.array_equal(median, ndimage.median_filter(counts, size=3, mode="nearest"))
+    for sigma in (1.0, 2.0, 3.5):
+        assert np.array_equal(
+            gaussian_on_support(median, sigma),
+            ndimage.gaussian_filter(median, sigma, mode="nearest"),
+        )
+    dense = rng.integers(0, 5, (h, w)).astype(float)  # the plain filters' path
+    assert np.array_equal(median3(dense), ndimage.median_filter(dense, size=3, mode="nearest"))
+    assert not gaussian_on_support(np.zeros((h, w)), 2.0).any()
+
+
+def test_detect_light_source_smooths_real_windows_as_scipys_filters(real_data):
+    # the detector's smoothing, on 2 ms windows of real recordings (what track_lights and
+    # edeflare score --detect-lights run it on), equals scipy's median and Gaussian filters
+    # to the bit; the rest of the detector reads only the smoothed map
+    from scipy import ndimage
+
+    from edeflare.events import count_map, iter_time_windows
+    from edeflare.io import read_events
+    from edeflare.lights.detect import gaussian_on_support, median3
+
+    checked = 0
+    for name in ("prophesee_gen3_rotating_light.raw", "davis346_flicker_lamps.aedat4",
+                 "prophesee_gen41_street.raw"):  # fmt: skip
+        events, size = read_events(real_data / name)
+        for _, window in list(iter_time_windows(events, 2_000))[::3]:
+            counts = count_map(window, size).astype(float)
+            plain = ndimage.gaussian_filter(
+                ndimage.median_filter(counts, size=3, mode="nearest"), 2.0, mode="nearest"
+            )
+            assert np.array_equal(gaussian_on_support(median3(counts), 2.0), plain)
+            checked += 1
+    assert checked > 30

@@ -17,7 +17,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..errors import ParameterError
-from ..events import SensorSize, check_sensor_size, count_map
+from ..events import SensorSize, check_sensor_size
 from .cells import LIGHT_CORE_RATE, covered_us, window_lights
 from .detect import detect_light_source
 
@@ -103,32 +103,13 @@ def light_test_summary(
     return LightTestSummary(n, lit, float(np.median(rates)) if rates else None)
 
 
-_CAP = 8  # events per pixel counted when looking for the densest cell: no hot pixel wins
-_REACH = 96  # pixels around the densest cell searched for the brightest region
-
-
 def _brightest_rate(events: np.ndarray, size: SensorSize, span_us: int) -> float | None:
-    """Events per firing pixel and millisecond of the window's brightest compact region.
-
-    :func:`detect_light_source` runs on the count map around the densest 8x8 cell (each
-    pixel counted at most :data:`_CAP` times there), not on the whole frame: the same
-    region where it lies within :data:`_REACH` pixels of that cell, at a hundredth of the
-    cost on a 1280x720 sensor (a median filter of the full frame per window)."""
-    width, height = size
-    counts = count_map(events, size)
-    cells = np.add.reduceat(
-        np.add.reduceat(np.minimum(counts, _CAP), np.arange(0, height, 8), axis=0),
-        np.arange(0, width, 8),
-        axis=1,
-    )
-    cy, cx = np.unravel_index(int(np.argmax(cells)), cells.shape)
-    y0, x0 = max(cy * 8 - _REACH, 0), max(cx * 8 - _REACH, 0)
-    box = counts[y0 : cy * 8 + 8 + _REACH, x0 : cx * 8 + 8 + _REACH]
+    """Events per firing pixel and millisecond of the window's brightest compact region."""
     try:
-        (circle,) = detect_light_source(box.astype(np.float64))
+        (circle,) = detect_light_source(events, size)
     except ParameterError:  # no compact region: nothing to rate
         return None
-    x, y = events["x"].astype(np.float64) - x0, events["y"].astype(np.float64) - y0
+    x, y = events["x"].astype(np.float64), events["y"].astype(np.float64)
     inside = np.hypot(x - circle.cx, y - circle.cy) <= circle.r
-    pixels = np.unique(events["y"][inside].astype(np.int64) * width + events["x"][inside])
+    pixels = np.unique(events["y"][inside].astype(np.int64) * size[0] + events["x"][inside])
     return int(inside.sum()) / pixels.size / (span_us / 1000.0) if pixels.size else None
