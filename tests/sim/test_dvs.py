@@ -386,17 +386,25 @@ def test_ideal_warm_start_falling_uses_the_off_side():
     assert abs(ev.size / 6400 - 0.2) <= 4 * math.sqrt(0.2 * 0.8 / 6400)
 
 
-def test_voltmeter_warm_start_residuals_by_the_first_change():
+def test_voltmeter_warm_start_residuals_by_the_first_drift():
+    # constant light: the drift is the leak, k4 + k5 L > 0, so every residual starts
+    # uniformly on the ON side; a falling light (k1 dL/dt / (L + k2) far below -leak) on
+    # the OFF side; the same with the leak set to 0 and constant light: across both
     still = VoltmeterSimulator((64, 64), rng=3, warm_start=True)
     cold = VoltmeterSimulator((64, 64), rng=3)
     for sim in (still, cold):  # 1 µs of constant light: the dynamics barely move r
         run(sim, video([40.0, 40.0], shape=(64, 64), dt_us=1))
     assert np.abs(cold.residual).max() < 0.05
     r = still.residual.ravel()
-    assert stats.kstest(r, stats.uniform(loc=-1, scale=2).cdf).pvalue > 1e-3
-    rising = VoltmeterSimulator((64, 64), rng=3, warm_start=True)
-    run(rising, video([40.0, 40.001], shape=(64, 64), dt_us=1))
-    assert (rising.residual > 0).all() and (rising.residual < 1).all()
+    assert (r > 0).all() and (r < 1).all()
+    assert stats.kstest(r, stats.uniform(loc=0, scale=1).cdf).pvalue > 1e-3
+    falling = VoltmeterSimulator((64, 64), rng=3, warm_start=True)
+    run(falling, video([40.0, 39.999], shape=(64, 64), dt_us=1))
+    assert (falling.residual < 0).all() and (falling.residual > -1).all()
+    no_leak = VoltmeterParams(k=(K1, K2, K3, 0.0, 0.0, K6))
+    held = VoltmeterSimulator((64, 64), no_leak, rng=3, warm_start=True)
+    run(held, video([40.0, 40.0], shape=(64, 64), dt_us=1))
+    assert stats.kstest(held.residual.ravel(), stats.uniform(loc=-1, scale=2).cdf).pvalue > 1e-3
     # the per-pixel random streams start the same either way, and a seed repeats
     fresh = (VoltmeterSimulator((64, 64), rng=3, warm_start=w) for w in (False, True))
     assert np.array_equal(*(f._state for f in fresh))

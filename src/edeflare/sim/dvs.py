@@ -15,10 +15,11 @@ A real sensor has been running long before any recording starts, and a pixel und
 a steady change (a slowly drifting camera, the slope of a lamp's halo) sits anywhere
 between its reference and the threshold it moves towards, uniformly: that change fires
 it at its long-run rate from the first instant. ``warm_start=True`` starts each pixel
-so, by the sign of its change over the first frame interval: DVS-Voltmeter's carried
-residual uniform in ``(0, 1)`` threshold units where the light rises, ``(-1, 0)`` where
-it falls and ``(-1, 1)`` where it holds; the ideal model's log intensity over its
-reference uniform in ``(0, C_on)``, ``(-C_off, 0)`` or ``(-C_off, C_on)``. A rise of
+so, by the direction it moves in over the first frame interval: DVS-Voltmeter's carried
+residual uniform in ``(0, 1)`` threshold units where its drift (the light's change and
+the leak) is positive, ``(-1, 0)`` where it is negative and ``(-1, 1)`` where it is 0;
+the ideal model's log intensity over its reference uniform in ``(0, C_on)`` where the
+light rises, ``(-C_off, 0)`` where it falls and ``(-C_off, C_on)`` where it holds. A rise of
 ``d`` (log units) over a span then fires ``d / C_on`` events per pixel on average, the
 long-run rate, where a cold start fires ``floor(d / C_on)``. It matters where change is
 slow: the far scattered light of a steady lamp, a dim street under a drifting camera.
@@ -326,8 +327,8 @@ class VoltmeterSimulator(_FrameSimulator):
         Seed of the per-pixel random streams (one 64-bit draw; with ``warm_start``,
         then the starting residuals).
     warm_start : bool
-        Start each pixel's residual uniformly between 0 and the barrier its first
-        change moves it towards instead of at 0 (see the module docstring).
+        Start each pixel's residual uniformly between 0 and the barrier its drift over
+        the first interval moves it towards instead of at 0 (see the module docstring).
 
     Examples
     --------
@@ -386,8 +387,12 @@ class VoltmeterSimulator(_FrameSimulator):
     def _interval(self, flat: np.ndarray, t0: float, t1: float) -> np.ndarray:
         if flat.dtype == np.float64 and self._prev.dtype != np.float64:
             self._prev = self._prev.astype(np.float64)
-        if self._warm is not None:
-            self._residual[:] = _warm_offsets(self._warm, flat - self._prev, 1.0, 1.0)
+        if self._warm is not None:  # by the sign of each pixel's drift (_voltmeter._model)
+            k1, k2, _, k4, k5, _ = self.params.k
+            new, old = flat.astype(np.float64), self._prev.astype(np.float64)
+            avg = (new + old) / 2.0
+            drift = k1 * (new - old) / (t1 - t0) / (avg + k2) + k4 + k5 * avg
+            self._residual[:] = _warm_offsets(self._warm, drift, 1.0, 1.0)
             self._warm = None
         t, x, y, p, *self._buffers = voltmeter_frame(
             self._prev, flat, self._residual, self._state, t0, t1, self._k, self._exact,
