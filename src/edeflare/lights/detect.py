@@ -83,6 +83,7 @@ def median3(counts: np.ndarray) -> np.ndarray:
         counts.ndim != 2
         or min(counts.shape) < 3
         or np.count_nonzero(counts) > _DENSE_SHARE * counts.size
+        or bool((counts < 0).any())  # not counts: the shortcut's premise fails
     ):
         return ndimage.median_filter(counts, size=3, mode="nearest")
     h, w = counts.shape

@@ -384,7 +384,8 @@ def _check_seed(name: str, value: Any) -> None:
 class ScriptConfig:
     """The ranges :func:`draw_script` draws from (defaults: the paper's, see the module docstring).
 
-    Pairs are ``(low, high)`` of a uniform draw unless noted.
+    Pairs are ``(low, high)`` of a uniform draw unless noted. ``warm_start`` draws
+    nothing: every sample's sensor starts its pixels warm (:mod:`edeflare.sim.dvs`).
 
     Examples
     --------
