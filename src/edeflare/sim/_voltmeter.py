@@ -143,6 +143,17 @@ def _model(l0, l1, dt, k1, k2, k3, k4, k5, k6):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def drifts(prev, new, t0, t1, k):  # pragma: no cover - compiled
+    """Each pixel's drift ``mu`` over ``(t0, t1]`` (:func:`_model`): the warm start's side."""
+    k1, k2, k3, k4, k5, k6 = k[0], k[1], k[2], k[3], k[4], k[5]
+    out = np.empty(prev.size, np.float64)
+    for px in range(prev.size):
+        out[px] = _model(np.float64(prev[px]), np.float64(new[px]), t1 - t0,
+                         k1, k2, k3, k4, k5, k6)[0]  # fmt: skip
+    return out
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def voltmeter_fast(prev, new, residual, state, t0, t1, k, mark):  # pragma: no cover - compiled
     """First pass over every pixel, branch-free so that it vectorises.
 

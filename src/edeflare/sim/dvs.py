@@ -98,7 +98,7 @@ from ._buffer import new_buffers, to_events
 from ._esim import esim_frame
 from ._rng import seed_states
 from ._validation import SimError, check_choice, check_range, dataclass_from_dict, make_rng
-from ._voltmeter import voltmeter_frame
+from ._voltmeter import drifts, voltmeter_frame
 
 __all__ = [
     "DVS240_K",
@@ -387,11 +387,8 @@ class VoltmeterSimulator(_FrameSimulator):
     def _interval(self, flat: np.ndarray, t0: float, t1: float) -> np.ndarray:
         if flat.dtype == np.float64 and self._prev.dtype != np.float64:
             self._prev = self._prev.astype(np.float64)
-        if self._warm is not None:  # by the sign of each pixel's drift (_voltmeter._model)
-            k1, k2, _, k4, k5, _ = self.params.k
-            new, old = flat.astype(np.float64), self._prev.astype(np.float64)
-            avg = (new + old) / 2.0
-            drift = k1 * (new - old) / (t1 - t0) / (avg + k2) + k4 + k5 * avg
+        if self._warm is not None:  # by the sign of each pixel's drift
+            drift = drifts(self._prev, flat, t0, t1, self._k)
             self._residual[:] = _warm_offsets(self._warm, drift, 1.0, 1.0)
             self._warm = None
         t, x, y, p, *self._buffers = voltmeter_frame(
