@@ -637,6 +637,35 @@ def test_numpy_ensemble_equals_torch_in_blocks_of_any_size(monkeypatch, rng):
     assert np.abs(want).max() > 0.1 and head_logits(params, x[:0]).shape == (0,)
 
 
+def test_context_read_per_cell_equals_the_columns_it_replaces(monkeypatch, rng):
+    import edeflare.models.event_head as event_head
+    from edeflare.models.event_head import (
+        EventHeadEnsemble,
+        event_cells,
+        gather_context,
+        head_logits_at_cells,
+    )
+
+    ensemble = EventHeadEnsemble([_random_context_head(s) for s in (4, 5, 6)])
+    params = ensemble.numpy_params()
+    ev = random_events(rng, 2_000, (40, 24), t0=0, span_us=20_000)
+    maps = rng.normal(size=(6, 3, 5)).astype(np.float32)  # 3 members x 2 maps, 8-px cells
+    x = rng.normal(size=(ev.size, 2)).astype(np.float32)
+    want = head_logits(params, np.hstack([x, gather_context(maps, ev, 8)]))
+    cells = event_cells(ev, 8, 5)
+    assert np.unique(cells).size == 15  # every cell read
+    got = head_logits_at_cells(params, x, maps, cells)
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+    monkeypatch.setattr(event_head, "HEAD_BLOCK", 96)  # 21 blocks, the last one short
+    np.testing.assert_allclose(head_logits_at_cells(params, x, maps, cells), want, atol=1e-5)
+    assert np.abs(want).max() > 0.1
+    with pytest.raises(ValueError, match="5 context maps for a head that reads 6"):
+        head_logits_at_cells(params, x, maps[:5], cells)
+    plain = EventHead(("net_logit",), (4,)).numpy_params()
+    with pytest.raises(ValueError, match="no context"):
+        head_logits_at_cells(plain, x[:, :1], maps, cells)
+
+
 def test_onnx_export_of_an_ensemble_decides_alike(tmp_path, rng):
     pytest.importorskip("onnxruntime")
     from edeflare.models.event_head import EventHeadEnsemble

@@ -48,7 +48,14 @@ from ..rules.terms import RuleTerms, knob_sets, unit_shifts
 from ..voxel import decode, decode_keep, encode
 from . import create_model
 from .event_features import window_features
-from .event_head import EventHead, EventHeadEnsemble, gather_context, head_logits
+from .event_head import (
+    EventHead,
+    EventHeadEnsemble,
+    event_cells,
+    gather_context,
+    head_logits,
+    head_logits_at_cells,
+)
 from .export import GRAPH_MASK, MaskOutputs, OnnxNetwork, onnx_bytes
 from .flaremask import FlareMaskNet
 from .mask_kernels import (
@@ -502,11 +509,22 @@ class ModelDeflarer:
             # the lights' rates over the part of the window the stream covers
             ctx = WindowContext(events, sensor_size, covered_us(events, start, w), sup)
             if head is not None:
-                columns = self._head_columns(ctx, v, None if maps is None else maps[k])
-                v = out[k] = head_logits(head, columns)
+                v = out[k] = self._head_logits(ctx, v, None if maps is None else maps[k])
             if apply:
                 self.rules.apply(v, ctx)
         return out, supports
+
+    def _head_logits(
+        self, ctx: WindowContext, logits: np.ndarray, maps: np.ndarray | None
+    ) -> np.ndarray:
+        """A window's keep head logits: :func:`head_logits` of :meth:`_head_columns`, the
+        context's share of the first layer computed per cell, not per event."""
+        names = self.head_params["features"]
+        features = window_features(ctx, logits, names, window_us=self.window_us)
+        if maps is None:
+            return head_logits(self.head_params, features)
+        cells = event_cells(ctx.events, self.model.scale, maps.shape[-1])
+        return head_logits_at_cells(self.head_params, features, maps, cells)
 
     def _head_columns(
         self, ctx: WindowContext, logits: np.ndarray, maps: np.ndarray | None
