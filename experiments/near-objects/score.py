@@ -2,8 +2,9 @@
 four window phases (TermsRecording at the card's threshold, no rule knobs), and the two
 unseen scenes (one windowing, as benchmarks/unseen_scenes.py).
 
-Run: python experiments/near-objects/score.py WEIGHTS OUT.json FAERY_DATA UNSEEN_DIR
-(FAERY_DATA: faery-0.7.1/tests/data; UNSEEN_DIR: unseen_scenes.py's --folder)
+Run: python experiments/near-objects/score.py WEIGHTS OUT.json [FAERY_DATA UNSEEN_DIR]
+(FAERY_DATA: faery-0.7.1/tests/data; UNSEEN_DIR: unseen_scenes.py's --folder; without them,
+the six recordings of ../shared/data/real and the reference window only)
 """
 
 import json
@@ -25,12 +26,13 @@ path = bundled_weights(w) if not w.endswith(".safetensors") else w
 d = ModelDeflarer(path, runtime="torch")
 thr = d.card.keep_threshold
 out = {"weights": w, "threshold": thr}
-for name, ev, size, lights in real_recordings(Path(sys.argv[3])):
+faery = Path(sys.argv[3]) if len(sys.argv) > 3 else None
+for name, ev, size, lights in real_recordings(faery):
     rec = TermsRecording(name, d, ev, size, lights)
     row = rec.measure({}, [thr])[0]
     out[name] = [round(float(v), 4) for v in row]
     print(name, out[name], flush=True)
-for name in SCENES:
+for name in SCENES if faery is not None else ():
     ev, size = load_scene(Path(sys.argv[4]), name)
     out[name] = shares(ev, deflare(ev, size, "model", weights=w, rng=0))
     print(name, out[name], flush=True)
