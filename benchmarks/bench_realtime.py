@@ -41,7 +41,7 @@ go round all methods of a case in turn.
 model's name or a weights file), with the default runtime (``auto``).
 
 Run: ``python benchmarks/bench_realtime.py [--quick] [--repeat N] [--only-street]
-[--model WEIGHTS] [--baseline-src CHECKOUT]``
+[--model WEIGHTS] [--baseline-src CHECKOUT] [--only LABEL ...] [--name NAME]``
 """
 
 from __future__ import annotations
@@ -156,8 +156,20 @@ def main() -> None:
         help="also time the default model of another checkout of edeflare (e.g. a git "
         "worktree of an older commit) on every case, in the same run",
     )
+    parser.add_argument(
+        "--only",
+        nargs="+",
+        metavar="LABEL",
+        help="time only the methods of these row labels (e.g. 'model learned' for --model "
+        "learned, 'model mask.pixel (onnx)' for the default, raw); the speedup column needs "
+        "'model unet2d.lite'",
+    )
+    parser.add_argument(
+        "--name", help="the results' file name (default: realtime, or realtime_street)"
+    )
     args = parser.parse_args()
     baseline = None if args.baseline_src is None else _checkout_src(args.baseline_src)
+    only = None if args.only is None else set(args.only)
     from edeflare.io import write_events
 
     synthetic = (
@@ -193,6 +205,8 @@ def main() -> None:
         extra = [(f"model {Path(w).stem}", "model", {"weights": w}) for w in args.model]
         methods += extra
         methods += [(m, m, {}) for m in ("raw", "efr", "pfd-a", "pfd-b", "dv-fastdecay")]
+        if only is not None:
+            methods = [m for m in methods if m[0] in only]
         cases: list[tuple[Path, tuple[int, int], str, list[tuple[str, str, dict[str, str]]]]] = []
         if not args.only_street:
             for size, rate in synthetic:
@@ -210,6 +224,8 @@ def main() -> None:
             dense.insert(1, ("model mask.pixel (onnx, one view)", "model", one_view))
             dense += extra
             dense += [(m, m, {}) for m in ("raw", "pfd-a", "dv-fastdecay")]
+            if only is not None:
+                dense = [m for m in dense if m[0] in only]
             cases.append((street, street_size, "Gen4.1 street x20", dense))
         elif not args.quick:
             print(f"skip the street case: no {REAL / _STREET}", file=sys.stderr)
@@ -274,7 +290,7 @@ def main() -> None:
                 rows.append(row)
                 print(row, file=sys.stderr)
     report(
-        "realtime_street" if args.only_street else "realtime",
+        args.name or ("realtime_street" if args.only_street else "realtime"),
         rows,
         [
             "sensor",
