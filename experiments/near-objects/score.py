@@ -2,9 +2,10 @@
 four window phases (TermsRecording at the card's threshold, no rule knobs), and the two
 unseen scenes (one windowing, as benchmarks/unseen_scenes.py).
 
-Run: python experiments/near-objects/score.py WEIGHTS OUT.json [FAERY_DATA UNSEEN_DIR]
+Run: python experiments/near-objects/score.py WEIGHTS OUT.json [FAERY_DATA [UNSEEN_DIR]]
 (FAERY_DATA: faery-0.7.1/tests/data; UNSEEN_DIR: unseen_scenes.py's --folder; without them,
-the six recordings of ../shared/data/real and the reference window only)
+the six recordings of ../shared/data/real and the reference window only; without
+UNSEEN_DIR, no unseen scene)
 """
 
 import json
@@ -32,7 +33,7 @@ for name, ev, size, lights in real_recordings(faery):
     row = rec.measure({}, [thr])[0]
     out[name] = [round(float(v), 4) for v in row]
     print(name, out[name], flush=True)
-for name in SCENES if faery is not None else ():
+for name in SCENES if len(sys.argv) > 4 else ():
     ev, size = load_scene(Path(sys.argv[4]), name)
     out[name] = shares(ev, deflare(ev, size, "model", weights=w, rng=0))
     print(name, out[name], flush=True)

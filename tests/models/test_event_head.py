@@ -12,7 +12,7 @@ import torch
 
 from conftest import random_events, same_events
 from edeflare import deflare
-from edeflare.errors import EdeflareError
+from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events
 from edeflare.io.dsec import write_dsec_groups
 from edeflare.models import create_model
@@ -394,6 +394,42 @@ def test_the_flare_free_recording_is_learned_from_with_every_event_kept(tmp_path
     ]  # fmt: skip
     got = collect_features(paths, logits, 20_000, config, balanced=False, progress=False)
     assert set(got["source"].tolist()) == {0, 1}  # off by default
+
+
+def test_rate_augmentation_thins_training_windows_only_and_keeps_labels(tmp_path, rng):
+    from edeflare.models.head_training import collect_features
+
+    scene = random_events(rng, 4_000, (32, 24), t0=0, span_us=400_000)
+    flare = random_events(rng, 4_000, (32, 24), t0=0, span_us=400_000)
+    inp = np.sort(np.concatenate([scene, flare]), order="t", kind="stable")
+    path = tmp_path / "p.h5"
+    write_dsec_groups(path, {"input": inp, "gt": scene}, (32, 24))
+    seen = []
+
+    def logits(batch, size):  # records how many events each window's network sees
+        seen.extend(ev.size for _, ev in batch)
+        return [np.zeros(ev.size, np.float32) for _, ev in batch]
+
+    # every event of both classes drawn (per_window above a window's count)
+    config = HeadTrainingConfig(features=("polarity",), per_window=10_000, val_per_window=10_000)
+    full = collect_features([path], logits, 20_000, config, balanced=True, progress=False)
+    assert full["x"].shape[0] == inp.size and sum(seen) == inp.size
+    counts, seen = np.array(seen), []
+    thin = dataclasses.replace(config, thin=0.1)
+    got = collect_features([path], logits, 20_000, thin, balanced=True, progress=False)
+    windows = np.array(seen)
+    assert windows.size == counts.size == 20 and got["x"].shape[0] == windows.sum()
+    # a random half of the windows thinned, to between a tenth and all of their events
+    whole = windows == counts
+    assert 4 <= whole.sum() <= 16 and (windows[~whole] >= 0.05 * counts[~whole]).all()
+    assert got["x"].shape[0] < 0.9 * inp.size
+    # the labels stay each drawn event's own: a thinned scene event is still scene
+    assert 0.4 < got["y"].mean() < 0.6
+    seen.clear()  # the validation rows (balanced=False) are never thinned
+    val = collect_features([path], logits, 20_000, thin, balanced=False, progress=False)
+    assert val["x"].shape[0] == inp.size and sum(seen) == inp.size
+    with pytest.raises(ParameterError, match="thin must be in"):
+        HeadTrainingConfig(thin=0.0)
 
 
 def test_the_lights_own_events_are_flagged_at_collection(tmp_path, rng):

@@ -27,6 +27,18 @@ def _widths(text: str) -> tuple[int, ...]:
     return widths
 
 
+def add_thin_option(p: argparse.ArgumentParser) -> None:
+    """The ``--thin MIN`` rate augmentation of ``train-head`` and ``tune-head``."""
+    p.add_argument(
+        "--thin",
+        type=float,
+        default=1.0,
+        metavar="MIN",
+        help="rate augmentation: thin a random half of the training windows, each keeping "
+        "a share of its events drawn log-uniformly in [MIN, 1] (default 1: none)",
+    )
+
+
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     """Register the command."""
     p = sub.add_parser(
@@ -97,6 +109,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="weigh the events of each pair's scene alone (a recording without a light) W "
         "times their class in the loss",
     )
+    add_thin_option(p)
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--seed", type=int, default=0)
@@ -154,6 +167,7 @@ def run(args: argparse.Namespace) -> int:
         members=args.members,
         light_weight=args.light_weight,
         scene_weight=args.scene_weight,
+        thin=args.thin,
     )
     command = "edeflare " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "edeflare train-head"
     summary = train_head(

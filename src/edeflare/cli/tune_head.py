@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from ._common import sensor_size_arg
+from .train_head import add_thin_option
 
 HELP = (
     "Fit a trained keep head's perceptrons further on simulated pairs and annotated real "
@@ -79,6 +80,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="leave the last share F of each recording's span out of the fit and score it "
         "after, beside the head before the fit (tune.json's validation)",
     )
+    add_thin_option(p)
     p.add_argument("--epochs", type=int, default=3)
     p.add_argument("--lr", type=float, default=1e-3)
     p.add_argument("--seed", type=int, default=0)
@@ -124,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
         epochs=args.epochs,
         lr=args.lr,
         seed=args.seed,
+        thin=args.thin,
     )
     size = args.sensor_size
     recordings = []

@@ -54,7 +54,7 @@ import torch
 
 from .._progress import progress_bar
 from ..data.folders import dataset_folders
-from ..errors import EdeflareError
+from ..errors import EdeflareError, ParameterError
 from ..events import SensorSize
 from ..io._atomic import atomic_path
 from ..io.sequence import file_sha256, list_sequences, read_sequence
@@ -65,6 +65,7 @@ from .event_head import EventHead, EventHeadEnsemble, event_cells, head_logits
 
 __all__ = [
     "HeadTrainingConfig",
+    "check_thin",
     "choose_threshold",
     "collect_features",
     "collect_sets",
@@ -76,6 +77,7 @@ __all__ = [
     "loss_weights",
     "shuffled_batches",
     "teacher_targets",
+    "thinned",
     "train_head",
 ]
 
@@ -147,6 +149,11 @@ class HeadTrainingConfig:
     scene_weight: float = 1.0
     """Loss weight of the events of the scene alone (``light_free_windows``: a recording
     without a light, every event kept), times their class's weight."""
+    thin: float = 1.0
+    """Rate augmentation: a random half of the training windows is thinned before its
+    features are computed, each event kept with one probability per window drawn
+    log-uniformly in ``[thin, 1]`` (1: none). A real light or scene seen with another
+    sensor, bias or brightness fires at another rate than any simulated one."""
     context: int = 0
     """Channels of a learned whole-frame context (0: none): a cell U-Net on the network's
     inputs and keep logits, trained with the head (:class:`EventHead`)."""
@@ -172,6 +179,46 @@ class HeadTrainingConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise EdeflareError(f"{name} must be a positive number, got {value!r}")
+        check_thin(self.thin)
+
+
+def check_thin(thin: object) -> float:
+    """A rate augmentation's lowest share kept (:attr:`HeadTrainingConfig.thin`), checked.
+
+    Examples
+    --------
+    >>> check_thin(0.25)
+    0.25
+    >>> check_thin(0.0)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: thin must be in (0, 1] (the lowest share ...), got 0.0
+    """
+    if isinstance(thin, bool) or not isinstance(thin, (int, float)) or not 0.0 < thin <= 1.0:
+        raise ParameterError(
+            f"thin must be in (0, 1] (the lowest share of a window's events kept), got {thin!r}"
+        )
+    return float(thin)
+
+
+def thinned(rng: np.random.Generator, n: int, thin: float) -> np.ndarray | None:
+    """Which of a window's ``n`` events a rate augmentation keeps: None (all) for half of
+    the windows, else each event with one probability drawn log-uniformly in
+    ``[thin, 1]`` (:attr:`HeadTrainingConfig.thin`; 1: always None, no draw).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> [None if k is None else round(float(k.mean()), 2) for k in
+    ...  (thinned(rng, 10_000, 0.25) for _ in range(6))]
+    [0.36, 0.79, 0.69, 0.52, None, None]
+    >>> thinned(rng, 10, 1.0) is None
+    True
+    """
+    if thin >= 1.0 or rng.random() < 0.5:
+        return None
+    share = math.exp(rng.uniform(math.log(thin), 0.0))
+    return rng.random(n) < share
 
 
 def _windows(events: np.ndarray, start: int, end: int, window_us: int):
@@ -226,6 +273,11 @@ def collect_features(
                             FLARE_FREE_SOURCE - k))  # fmt: skip
         for events, truth, lit, source in streams:
             for s, part in _windows(events, start, end, window_us):
+                keep = thinned(rng, part.stop - part.start, config.thin) if balanced else None
+                if keep is not None:  # the window as a sparser sensor would see it
+                    part = np.arange(part.start, part.stop)[keep]
+                    if not part.size:
+                        continue
                 ev = events[part]
                 window_cells: list[np.ndarray] | None = None
                 if config.context:  # the cells the context reads, with the logits
@@ -622,7 +674,7 @@ def choose_threshold(
 
 
 _FEATURE_FIELDS = ("features", "per_window", "val_per_window", "tolerance_us",
-                   "light_free_windows", "flare_free_windows", "seed")  # fmt: skip
+                   "light_free_windows", "flare_free_windows", "thin", "seed")  # fmt: skip
 """The config fields the collected features depend on (not the fit's: a head of another
 size or schedule reuses a run's features)."""
 
@@ -637,6 +689,8 @@ def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kin
     fields = {k: v for k, v in dataclasses.asdict(config).items() if k in _FEATURE_FIELDS}
     if not fields["flare_free_windows"]:  # runs from before the option keep their features
         del fields["flare_free_windows"]
+    if fields["thin"] == 1.0:  # likewise
+        del fields["thin"]
     if config.context:  # the windows' cells are collected too
         fields["cells"] = True
     h.update(json.dumps([fields, kind, "gt|light", "light rows"], sort_keys=True).encode())

@@ -62,7 +62,14 @@ from ..io._atomic import atomic_path
 from ..io.sequence import file_sha256
 from ..lights import Lights
 from .event_head import EventHead, EventHeadEnsemble, head_logits
-from .head_training import LN3, HeadTrainingConfig, _optimise, loss_weights, shuffled_batches
+from .head_training import (
+    LN3,
+    HeadTrainingConfig,
+    _optimise,
+    check_thin,
+    loss_weights,
+    shuffled_batches,
+)
 from .two_view import view_windows
 
 __all__ = [
@@ -169,12 +176,15 @@ class TuningConfig:
     validate_last: float = 0.0
     """The share of each real recording's span, at its end, left out of the fit and scored
     after it (0: none)."""
+    thin: float = 1.0
+    """The simulated training rows' rate augmentation (:attr:`HeadTrainingConfig.thin`)."""
     epochs: int = 3
     lr: float = 1e-3
     batch_size: int = 4_096
     seed: int = 0
 
     def __post_init__(self) -> None:
+        check_thin(self.thin)
         v = self.validate_last
         if not (isinstance(v, (int, float)) and 0.0 <= v < 1.0):
             raise EdeflareError(f"validate_last must be in [0, 1), got {v!r}")
@@ -396,6 +406,7 @@ def tune_head(
     collect = HeadTrainingConfig(
         features=tuple(head.feature_names),
         context=head.context["channels"] if head.context else 0,
+        thin=config.thin,
     )
     sets, files_of, _ = collect_sets(folders, base, run, collect, progress=progress)
     train, val = sets["train"], sets["test"]
