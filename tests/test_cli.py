@@ -223,7 +223,7 @@ def test_demo_fails_loudly_without_its_model(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(infer, "bundled_weights", missing)
     assert main(["demo", "--out", str(tmp_path / "demo")]) == 1
     err = capsys.readouterr().err
-    assert "needs the bundled E-DeflareNet weights" in err and err.count("\n") == 1
+    assert "needs the bundled default weights" in err and err.count("\n") == 1
     assert not (tmp_path / "demo" / "metrics.json").exists()
 
 

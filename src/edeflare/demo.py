@@ -2,7 +2,7 @@
 
 :func:`run_demo` (``edeflare demo``) needs nothing but the installed
 package: the physics-driven simulator makes the scene, the baselines and the
-bundled E-DeflareNet de-flare it, and the paper's metrics score it.
+bundled default model de-flare it, and the paper's metrics score it.
 :func:`edeflare.data.toy.toy_flare_pair` is a cheaper procedural pair (a moving
 bar, a 100 Hz lamp, a six-spike flare halo) used by benchmarks and tests.
 """
@@ -50,7 +50,7 @@ def _demo_methods() -> dict[str, Any]:
         bundled_weights()
     except EdeflareError as exc:
         raise EdeflareError(
-            f"the demo needs the bundled E-DeflareNet weights, which this installation lacks "
+            f"the demo needs the bundled default weights, which this installation lacks "
             f"({exc}); reinstall edeflare"
         ) from None
     # The default model (night), the bundled voxel-to-voxel model of the uncalibrated

@@ -23,8 +23,9 @@ from ._common import (
 )
 
 HELP = (
-    "De-flare an event file, streaming: with the bundled E-DeflareNet (default), "
-    "a model of yours (--model PATH), or a baseline (raw, voxel, efr, pfd-a, pfd-b, "
+    "De-flare an event file, streaming: with the bundled default model (night: a flare mask "
+    "network and its priors), another bundled model or one of yours (--model NAME|PATH), "
+    "or a baseline (raw, voxel, efr, pfd-a, pfd-b, "
     "dv-fastdecay, dv-bafilter, dv-knoise: dv-processing's filters, the dv extra)."
 )
 BATCH_HELP = (
