@@ -430,6 +430,11 @@ def test_rate_augmentation_thins_training_windows_only_and_keeps_labels(tmp_path
     assert val["x"].shape[0] == inp.size and sum(seen) == inp.size
     with pytest.raises(ParameterError, match="thin must be in"):
         HeadTrainingConfig(thin=0.0)
+    # the caches' names: thinned training rows are other rows, the test rows the same
+    from edeflare.models.head_training import _identity
+
+    names = {k: [_identity([path], path, c, k) for c in (config, thin)] for k in ("train", "test")}
+    assert names["train"][0] != names["train"][1] and names["test"][0] == names["test"][1]
 
 
 def test_the_lights_own_events_are_flagged_at_collection(tmp_path, rng):

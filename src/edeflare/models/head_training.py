@@ -689,7 +689,7 @@ def _identity(files: Sequence[Path], base: Path, config: HeadTrainingConfig, kin
     fields = {k: v for k, v in dataclasses.asdict(config).items() if k in _FEATURE_FIELDS}
     if not fields["flare_free_windows"]:  # runs from before the option keep their features
         del fields["flare_free_windows"]
-    if fields["thin"] == 1.0:  # likewise
+    if fields["thin"] == 1.0 or kind == "test":  # likewise; the test rows are never thinned
         del fields["thin"]
     if config.context:  # the windows' cells are collected too
         fields["cells"] = True
