@@ -612,6 +612,8 @@ def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng):
         (["--members", "0"], "--members must be at least 1"),
         (["--light-weight", "0"], "--light-weight must be positive, got 0.0"),
         (["--scene-weight", "nan"], "--scene-weight must be positive, got nan"),
+        (["--thin", "0"], "thin must be in (0, 1]"),
+        (["--thin", "1.5"], "thin must be in (0, 1]"),
     ],
 )
 def test_train_head_refuses_a_bad_context_before_reading_data(tmp_path, capsys, args, message):
