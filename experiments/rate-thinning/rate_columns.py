@@ -39,8 +39,13 @@ def run(scales: dict[str, float], path: Path) -> list[float]:
 
     infer.window_features = scaled
     try:
-        res = score_recording(path, ["model"], lights=bundled_lights(FILE), phases=1,
-                              method_params={"model": {"weights": "learned"}})
+        res = score_recording(
+            path,
+            ["model"],
+            lights=bundled_lights(FILE),
+            phases=1,
+            method_params={"model": {"weights": "learned"}},
+        )
     finally:
         infer.window_features = original
     m = res.rows[0]
@@ -51,8 +56,9 @@ r = read_events(REAL / FILE)
 out = {}
 with tempfile.TemporaryDirectory() as tmp:
     path = Path(tmp) / "half.h5"
-    write_events(path, r.events[np.random.default_rng(0).random(r.events.size) < 0.5],
-                 r.sensor_size)
+    write_events(
+        path, r.events[np.random.default_rng(0).random(r.events.size) < 0.5], r.sensor_size
+    )
     for arm, scales in ARMS.items():
         out[arm] = run(scales, path)
         print(arm, out[arm], flush=True)
