@@ -35,7 +35,7 @@ def add_thin_option(p: argparse.ArgumentParser) -> None:
         default=1.0,
         metavar="MIN",
         help="rate augmentation: thin a random half of the training windows, each keeping "
-        "a share of its events drawn log-uniformly in [MIN, 1] (default 1: none)",
+        "a share of its events drawn log-uniformly in [MIN, 1] (1: none)",
     )
 
 
