@@ -10,25 +10,23 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from _rows import cache_path
 
-from edeflare.io.sequence import list_sequences
 from edeflare.models.event_features import DEFAULT_FEATURES
-from edeflare.models.head_training import HeadTrainingConfig, _identity
+from edeflare.models.head_training import HeadTrainingConfig
 from edeflare.models.infer import bundled_weights
 
 src, dst, names = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3].split(",")
-folders = sorted((src.parent / "s0").iterdir())  # as the shell's RUNS/s0/* lists them
 keep = [DEFAULT_FEATURES.index(n) for n in names]
 dst.mkdir(parents=True, exist_ok=True)
 config = HeadTrainingConfig(features=DEFAULT_FEATURES, context=8)
+sub = dataclasses.replace(config, features=tuple(names))
+base = bundled_weights("night")
 for split in ("train", "test"):
-    files = [f for d in folders if (d / split).is_dir() for f in list_sequences(d / split)]
-    base = bundled_weights("night")
-    with np.load(src / f"features-{split}-{_identity(files, base, config, split)}.npz") as z:
+    with np.load(cache_path(src, base, config, split)) as z:
         rows = {k: z[k] for k in z.files}
     rows["x"] = np.ascontiguousarray(rows["x"][:, keep])
-    sub = dataclasses.replace(config, features=tuple(names))
-    out = dst / f"features-{split}-{_identity(files, base, sub, split)}.npz"
+    out = cache_path(dst, base, sub, split)
     with open(out, "wb") as f:
         np.savez(f, **rows)
     print(out.name, rows["x"].shape)

@@ -14,8 +14,4 @@ fit() {  # fit NAME [OPTIONS...]
 python $here/link_rows.py "$runs/A" "$runs/D" 1
 python $here/link_rows.py "$runs/B" "$runs/C" 0.25
 fit D & fit C --thin 0.25 & wait
-for arm in D C; do
-    python $here/thin_probe.py "$runs/$arm/model.safetensors" "$runs/probe_$arm.json" 1 0.5 &
-    python experiments/near-objects/score.py "$runs/$arm/model.safetensors" "$runs/score_$arm.json" "$faery"
-    wait
-done
+bash $here/score_arms.sh "$faery" "$runs" D C

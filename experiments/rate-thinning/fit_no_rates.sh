@@ -10,6 +10,4 @@ balance_pixel,balance_8,balance_32,centre_distance
 python $here/columns.py "$runs/D" "$runs/E" "$features"
 edeflare train-head "$runs"/s0/* --weights night --out "$runs/E" --hidden 64,32 \
     --epochs 12 --context 8 --no-progress --features "$features"
-python $here/thin_probe.py "$runs/E/model.safetensors" "$runs/probe_E.json" 1 0.5 &
-python experiments/near-objects/score.py "$runs/E/model.safetensors" "$runs/score_E.json" "$faery"
-wait
+bash $here/score_arms.sh "$faery" "$runs" E

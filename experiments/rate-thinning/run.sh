@@ -12,8 +12,4 @@ fit() {  # fit NAME [OPTIONS...]
         --real ../shared/data/real/atis_ncars_crop.dat --real-weight 1e-6 "$@"
 }
 fit A & fit B --thin 0.25 & wait
-for arm in A B; do
-    python $here/thin_probe.py "$runs/$arm/model.safetensors" "$runs/probe_$arm.json" 1 0.5 &
-    python experiments/near-objects/score.py "$runs/$arm/model.safetensors" "$runs/score_$arm.json" "$faery"
-    wait
-done
+bash $here/score_arms.sh "$faery" "$runs" A B
