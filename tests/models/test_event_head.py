@@ -16,7 +16,13 @@ from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events
 from edeflare.io.dsec import write_dsec_groups
 from edeflare.models import create_model
-from edeflare.models.event_features import FEATURES, NO_LIGHT_RADII, window_features
+from edeflare.models.event_features import (
+    FEATURES,
+    NO_LIGHT_RADII,
+    RELATIVE_FEATURES,
+    relative_features,
+    window_features,
+)
 from edeflare.models.event_head import EventHead, head_logits
 from edeflare.models.head_training import (
     LN3,
@@ -70,6 +76,62 @@ def test_features_of_a_small_window_by_hand():
     # bins 0, 5 and 7 (mean 3 / 8), OFF: one in bin 2 (mean 1 / 8)
     on, off = math.log(2 / (1 + 3 / 8)), math.log(2 / (1 + 1 / 8))
     assert column(t, "sync_64") == [round(v, 5) for v in (on, off, on, on)]
+
+
+def test_rate_relative_features_of_a_small_window_by_hand():
+    # the window of the test above: (1, 1) fires 3 events in cell (0, 0); (9, 6) one in (0, 1)
+    ev = make_events([0, 2_000, 5_000, 7_000], [1, 1, 1, 9], [1, 1, 1, 6], [1, 0, 1, 1])
+    t = window_features(WindowContext(ev, (16, 8), 20_000), np.zeros(4, np.float32))
+    # the pixel's events over its cell's events per pixel: 3 / (3 / 64) and 1 / (1 / 64)
+    assert column(t, "rel_pixel") == [round(math.log(64), 5)] * 4
+    # the cell's rate over the window's 4 / 128 a pixel
+    assert column(t, "rel_8") == [round(math.log(3 / 64 * 32), 5)] * 3 + [round(math.log(0.5), 5)]
+    assert column(t, "rel_32") == [0.0] * 4  # the 32x32 square is the whole sensor
+    # (1 + others in its 5x5) over 25 pixels' share of its cell: 3 / (75 / 64), 1 / (25 / 64)
+    assert column(t, "rel_support") == [round(math.log(3 * 64 / 75), 5)] * 3 + [
+        round(math.log(64 / 25), 5)
+    ]
+    # the gap (20 ms for a first, then 2 and 3 ms) x the pixel's events over the window's 20 ms
+    gaps = [20 * 3, 2 * 3, 3 * 3, 20 * 1]
+    assert column(t, "rel_since") == [round(math.log1p(g / 20), 5) for g in gaps]
+
+
+def test_rate_relative_features_stay_when_a_window_is_thinned_at_random(rng):
+    # a dense lamp-like block over a sparse background: at half the events every absolute
+    # rate falls by log(2); the relative features keep their means
+    lamp = random_events(rng, 40_000, (32, 32), t0=0, span_us=20_000)
+    back = random_events(rng, 8_000, (256, 128), t0=0, span_us=20_000)
+    lamp["x"] += 100
+    lamp["y"] += 40
+    ev = np.concatenate([lamp, back])
+    ev = ev[np.argsort(ev["t"], kind="stable")]
+    half = ev[rng.random(ev.size) < 0.5]
+    names = ["rate_8", "rate_128", "rel_pixel", "rel_8", "rel_32", "rel_128", "rel_support"]
+
+    def means(e: np.ndarray) -> np.ndarray:
+        table = window_features(WindowContext(e, (256, 128), 20_000), np.zeros(e.size), names)
+        in_lamp = (e["x"] >= 100) & (e["x"] < 132) & (e["y"] >= 40) & (e["y"] < 72)
+        return table[in_lamp].mean(0)
+
+    whole, thinned = means(ev), means(half)
+    # the lamp's cells fire 40000 / 1024 ~ 39 a pixel: the absolute rate halves
+    assert whole[0] - thinned[0] == pytest.approx(math.log(2), abs=0.05)
+    assert whole[1] - thinned[1] > 0.3
+    np.testing.assert_allclose(thinned[2:], whole[2:], atol=0.05)
+
+
+def test_rate_relative_features_follow_from_the_stored_absolute_columns(rng):
+    # rows drawn with the absolute features (float32, as a run's cache holds them) give the
+    # relative ones as the window computes them
+    ev = random_events(rng, 5000, (64, 48), t0=0, span_us=20_000)
+    ctx = WindowContext(ev, (64, 48), 20_000)
+    table = window_features(ctx, np.zeros(ev.size, np.float32))
+    stored = {n: table[:, k] for k, n in enumerate(NAMES)}
+    derived = relative_features(stored, list(RELATIVE_FEATURES))
+    for name, values in derived.items():
+        np.testing.assert_allclose(values, table[:, NAMES.index(name)], rtol=1e-4, atol=1e-5)
+    with pytest.raises(ParameterError, match="'rate_8' is not a rate-relative feature"):
+        relative_features(stored, ["rate_8"])
 
 
 def test_a_flickers_bursts_stand_out_in_sync_and_steady_events_do_not():

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import functools
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numba
 import numpy as np
@@ -36,7 +36,14 @@ import numpy as np
 from ..errors import ParameterError
 from ..rules.context import WindowContext
 
-__all__ = ["DEFAULT_FEATURES", "FEATURES", "check_feature_names", "window_features"]
+__all__ = [
+    "DEFAULT_FEATURES",
+    "FEATURES",
+    "RELATIVE_FEATURES",
+    "check_feature_names",
+    "relative_features",
+    "window_features",
+]
 
 FEATURES: dict[str, str] = {
     "net_logit": "the mask network's keep logit (cells of the whole frame, and the pixel)",
@@ -67,16 +74,38 @@ FEATURES: dict[str, str] = {
     "window); log(1 + window in ms) for the first (a flickering light's period)",
     "sync_64": "log((1 + events of its polarity in its 64x64 block and 1 ms) / (1 + their "
     "mean over the window's 1 ms bins)): in a burst, as a flicker's scattered light fires",
+    "rel_pixel": "log(events of its pixel / events per pixel of its 8x8 cell): the pixel "
+    "against its cell, the same at any rate",
+    "rel_8": "log(events per pixel of its 8x8 cell / events per pixel of the whole window)",
+    "rel_32": "log(events per pixel of the 32x32 square around its cell / of the whole window)",
+    "rel_128": "log(events per pixel of the 128x128 square around its cell / of the whole window)",
+    "rel_support": "log((1 + support) / (25 x events per pixel of its 8x8 cell)): its 5x5 "
+    "square against its cell's density",
+    "rel_since": "log(1 + ms since its pixel's previous event x its pixel's events / window "
+    "in ms): the gap over the pixel's mean gap",
 }
 """The per-event features, in column order, with what each holds. The ``rate_*`` counts
 are scaled to a full window where the stream covers only part of it."""
 
+RELATIVE_FEATURES: dict[str, tuple[str, ...]] = {
+    "rel_pixel": ("rate_pixel", "rate_8"),
+    "rel_8": ("rate_8", "rate_window"),
+    "rel_32": ("rate_32", "rate_window"),
+    "rel_128": ("rate_128", "rate_window"),
+    "rel_support": ("support", "rate_8"),
+    "rel_since": ("since_pixel", "rate_pixel"),
+}
+"""Each rate-relative feature and the absolute features it is computed from
+(:func:`relative_features`). Thinning a window at random scales every count, and each
+absolute rate with it, by the same share; these ratios stay (in expectation)."""
+
 DEFAULT_FEATURES: tuple[str, ...] = tuple(
-    name for name in FEATURES if name not in ("since_same", "sync_64")
+    name for name in FEATURES if name not in ("since_same", "sync_64", *RELATIVE_FEATURES)
 )
 """What ``train-head`` reads unless told otherwise: every feature but the two flicker
 features, which a head of ``learned``'s form trained with them used to keep 64 % of a real
-day street that has flicker in it (``experiments/context-head``)."""
+day street that has flicker in it (``experiments/context-head``), and the rate-relative
+ones (:data:`RELATIVE_FEATURES`)."""
 
 NO_LIGHT_RADII = 64.0
 """The distance, in radii, given to every event of a window without a light."""
@@ -104,6 +133,41 @@ def check_feature_names(names: Sequence[str], where: str = "model card") -> tupl
     if len(set(names)) != len(names):
         raise ParameterError(f"{where}: a feature is named twice in {list(names)}")
     return names
+
+
+def relative_features(
+    columns: Mapping[str, np.ndarray], names: Sequence[str], window_us: int = 20_000
+) -> dict[str, np.ndarray]:
+    """The rate-relative features ``names`` (of :data:`RELATIVE_FEATURES`) from the absolute
+    columns they are computed from, as :func:`window_features` gives them.
+
+    Only ratios of counts enter, so a window with every event kept at random with
+    probability q gives (in expectation) the same values as the whole window. Computed from
+    the absolute columns (not from the counts) so that rows drawn with the absolute features
+    give the relative ones too.
+
+    Examples
+    --------
+    >>> # a pixel with 4 events in a cell of 1 event per pixel, in a window of 0.25 a pixel
+    >>> cols = {"rate_pixel": np.log1p([4.0]), "rate_8": np.log1p([1.0]),
+    ...         "rate_window": np.log1p([0.25])}
+    >>> out = relative_features(cols, ["rel_pixel", "rel_8"])
+    >>> np.round(np.exp([out["rel_pixel"][0], out["rel_8"][0]]), 6).tolist()
+    [4.0, 4.0]
+    """
+    counts = {k: np.expm1(np.asarray(v, np.float64)) for k, v in columns.items()}
+    out: dict[str, np.ndarray] = {}
+    for name in names:
+        if name not in RELATIVE_FEATURES:
+            raise ParameterError(f"{name!r} is not a rate-relative feature")
+        a, b = (counts[k] for k in RELATIVE_FEATURES[name])
+        if name == "rel_support":  # the event and its 5x5 square against 25 pixels' share
+            out[name] = np.log((1.0 + a) / np.maximum(25.0 * b, 1e-9))
+        elif name == "rel_since":  # ms since the last x events of the pixel / window in ms
+            out[name] = np.log1p(a * b / (window_us / 1000.0))
+        else:  # every event's pixel and cell hold one event at least
+            out[name] = np.log(np.maximum(a, 1e-9) / np.maximum(b, 1e-9))
+    return out
 
 
 def _box(per_cell: np.ndarray, radius: int) -> np.ndarray:
@@ -237,6 +301,8 @@ def window_features(
         The model's window: rates over a shorter covered span are scaled up to it.
     """
     names = tuple(FEATURES) if names is None else check_feature_names(names)
+    relative = [n for n in names if n in RELATIVE_FEATURES]
+    need = set(names) | {k for n in relative for k in RELATIVE_FEATURES[n]}
     ev = ctx.events
     n = ev.size
     if net_logit.shape != (n,):
@@ -246,7 +312,6 @@ def window_features(
     x, y = ev["x"].astype(np.int64), ev["y"].astype(np.int64)
     on = (ev["p"] != 0).astype(np.float64)
     sign = 2.0 * on - 1.0
-    need = set(names)
     cols: dict[str, np.ndarray] = {}
 
     def support() -> np.ndarray:
@@ -325,6 +390,7 @@ def window_features(
         cols["sync_64"] = _sync(ev, x, y, on, width)
     if "centre_distance" in need:
         cols["centre_distance"] = _centre_distance(width, height)[pixel]
+    cols.update(relative_features(cols, relative, window_us))
     # one feature per row while filling (contiguous writes), returned as (n, F)
     out = np.empty((len(names), n), np.float32)
     for k, name in enumerate(names):
