@@ -94,6 +94,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="level widths of the context's U-Net",
     )
     p.add_argument(
+        "--relative-context",
+        action="store_true",
+        help="the context reads each cell's event counts relative to its window's mean count "
+        "(the same at any event rate; needs --context)",
+    )
+    p.add_argument(
         "--light-weight",
         type=float,
         default=1.0,
@@ -145,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--context must be 0 or more, got {args.context}")
     if not args.context_widths:
         raise ParameterError("--context-widths needs at least one width")
+    if args.relative_context and not args.context:
+        raise ParameterError("--relative-context needs a context (--context K)")
     for name in ("lr", "light_weight", "scene_weight"):
         value = getattr(args, name)
         if not (math.isfinite(value) and value > 0):
@@ -161,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
         flare_free_windows=args.flare_free_windows,
         context=args.context,
         context_widths=tuple(args.context_widths),
+        relative_context=args.relative_context,
         epochs=args.epochs,
         lr=args.lr,
         seed=args.seed,

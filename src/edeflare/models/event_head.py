@@ -48,7 +48,8 @@ __all__ = [
 def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, Any]:
     """A card's ``head`` entry checked: ``{"features": [...], "hidden": [...]}``, and
     ``"context": {"channels": k, "inputs": c, "widths": [...]}`` for a head with a learned
-    whole-frame context (:class:`EventHead`), and ``"members": n`` (2 or more) for an
+    whole-frame context (:class:`EventHead`; with ``"relative_counts": m``, its first ``m``
+    inputs, log event counts, are read relative to the window's mean), and ``"members": n`` (2 or more) for an
     ensemble of ``n`` such heads (:class:`EventHeadEnsemble`).
 
     Examples
@@ -76,10 +77,11 @@ def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, A
     if context:
         if not isinstance(context, Mapping):
             raise ParameterError(f"{where}: context must be a mapping, got {context!r}")
-        unknown = sorted(set(context) - {"channels", "inputs", "widths"})
+        unknown = sorted(set(context) - {"channels", "inputs", "widths", "relative_counts"})
         if unknown or not {"channels", "inputs", "widths"} <= set(context):
             raise ParameterError(
-                f"{where}: context holds channels, inputs and widths, got {sorted(context)}"
+                f"{where}: context holds channels, inputs, widths (and relative_counts), "
+                f"got {sorted(context)}"
             )
         sizes = [context["channels"], context["inputs"]]
         channels, inputs = _widths(sizes, f"{where}: context sizes")
@@ -87,6 +89,14 @@ def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, A
         if not widths:
             raise ParameterError(f"{where}: context widths must not be empty")
         out["context"] = {"channels": channels, "inputs": inputs, "widths": widths}
+        relative = context.get("relative_counts", 0)
+        if relative:
+            (relative,) = _widths([relative], f"{where}: context relative_counts")
+            if relative > inputs:
+                raise ParameterError(
+                    f"{where}: context relative_counts {relative} exceeds its {inputs} inputs"
+                )
+            out["context"]["relative_counts"] = relative
     members = spec.get("members", 1)
     if isinstance(members, bool) or not isinstance(members, int) or members < 1:
         raise ParameterError(f"{where}: members must be a positive integer, got {members!r}")
@@ -136,7 +146,11 @@ class EventHead(nn.Module):
         Widths of the hidden layers (none: a logistic regression).
     context : mapping, optional
         ``{"channels": k, "inputs": c, "widths": [...]}``: the context network's output
-        maps, input channels and level widths (none: no context).
+        maps, input channels and level widths (none: no context). With
+        ``"relative_counts": m``, the first ``m`` input channels (the cells' log(1 + n)
+        event counts) are read as log(1 + n / the window's mean n over them): the same
+        (in expectation) when a window's events are thinned at random
+        (:meth:`context_input`).
 
     Examples
     --------
@@ -199,6 +213,7 @@ class EventHead(nn.Module):
             self.scale[:n] = x[:, :n].std(0).clamp(min=1e-3)
             if self.context and cells is not None:
                 flat = cells.transpose(0, 1).reshape(cells.shape[1], -1).double()
+                # cells as the context reads them (context_input): standardise those
                 self.context_mean.copy_(flat.mean(1))
                 self.context_scale.copy_(flat.std(1).clamp(min=1e-3))
 
@@ -206,8 +221,29 @@ class EventHead(nn.Module):
         """The context's maps ``(N, channels, h, w)`` of windows' cells ``(N, inputs, h, w)``."""
         if not self.context:
             raise ValueError("this head has no context")
+        cells = self.context_input(cells)
         z = (cells - self.context_mean[:, None, None]) / self.context_scale[:, None, None]
         return self.context_net.unet(z)
+
+    def context_input(self, cells: torch.Tensor) -> torch.Tensor:
+        """Windows' cells ``(N, inputs, h, w)`` as the context reads them: as given, or with
+        ``relative_counts`` of them (log(1 + n) counts) as log(1 + n / m), ``m`` the window's
+        mean ``n`` over those channels and cells (a window without events: 0).
+
+        Examples
+        --------
+        >>> head = EventHead(["net_logit"], (4,), {"channels": 1, "inputs": 2,
+        ...                  "widths": [4], "relative_counts": 1})
+        >>> cells = torch.log1p(torch.tensor([[[[1.0, 3.0]], [[5.0, 5.0]]]]))  # n = 1, 3
+        >>> head.context_input(cells)[0, 0, 0].expm1().tolist()  # n / 2; the second left
+        [0.5, 1.5]
+        """
+        m = self.context.get("relative_counts", 0) if self.context else 0
+        if not m:
+            return cells
+        n = torch.expm1(cells[:, :m]).clamp(min=0.0)
+        mean = n.mean(dim=(1, 2, 3), keepdim=True)
+        return torch.cat([torch.log1p(n / mean.clamp(min=1e-6)), cells[:, m:]], 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         z = (x - self.mean) / self.scale

@@ -159,6 +159,10 @@ class HeadTrainingConfig:
     inputs and keep logits, trained with the head (:class:`EventHead`)."""
     context_widths: tuple[int, ...] = (16, 32, 64, 64)
     """Level widths of the context's U-Net."""
+    relative_context: bool = False
+    """The context reads the cells' event counts relative to the window's mean count
+    (``relative_counts`` of :class:`EventHead`): the same at any rate, as the
+    ``rel_*`` features are."""
     epochs: int = 8
     batch_size: int = 4_096
     """Events per step (a head without a context)."""
@@ -596,23 +600,32 @@ def fit_context_head(
     *,
     targets: np.ndarray | None = None,
     progress: bool = True,
+    count_channels: int = 0,
 ) -> EventHead:
     """A head with a context of ``config.context`` maps fitted to :func:`collect_features`'
     output (the rows with their windows' cells): each step learns from the drawn events of
     ``config.batch_windows`` windows of one sensor size, rows weighed by
     :func:`loss_weights`. ``targets``: keep probabilities to learn instead of the labels,
-    as :func:`fit_head`."""
+    as :func:`fit_head`. ``count_channels``: the cells' leading event-count channels, read
+    relative to the window's mean where ``config.relative_context``."""
     torch.manual_seed(config.seed)
     y = data["y"]
     cells0 = data["cells_000000"]
-    head = EventHead(
-        config.features,
-        config.hidden,
-        {"channels": config.context, "inputs": int(cells0.shape[0]),
-         "widths": list(config.context_widths)},
-    )  # fmt: skip
+    context = {"channels": config.context, "inputs": int(cells0.shape[0]),
+               "widths": list(config.context_widths)}  # fmt: skip
+    if config.relative_context:
+        if not 0 < count_channels <= context["inputs"]:
+            raise EdeflareError(
+                f"a relative context needs the cells' count channels, got {count_channels}"
+            )
+        context["relative_counts"] = count_channels
+    head = EventHead(config.features, config.hidden, context)
     n = len(data["sizes"])
-    sample = [data[f"cells_{i:06d}"] for i in range(0, n, max(1, n // 64))]
+    sample = [  # each window's cells as the context reads them (relative to its own mean)
+        head.context_input(torch.from_numpy(data[f"cells_{i:06d}"].astype(np.float32))[None])[0]
+        .numpy()
+        for i in range(0, n, max(1, n // 64))
+    ]
     flat = np.concatenate([c.reshape(c.shape[0], -1) for c in sample], 1).astype(np.float32)
     head.standardise_on(  # the cells of windows of every size, as (1, channels, 1, cells)
         torch.from_numpy(np.asarray(data["x"], np.float32)), torch.from_numpy(flat)[None, :, None]
@@ -784,7 +797,9 @@ def train_head(
     train, val = sets["train"], sets["test"]
     targets = None if teacher_head is None else _head_probabilities(teacher_head, train)
     heads = [
-        fit_context_head(train, member, targets=targets, progress=progress)
+        fit_context_head(
+            train, member, targets=targets, progress=progress, count_channels=2 * card.bins
+        )  # the cells: log counts of each bin and polarity, the firing share, the logits
         if config.context
         else fit_head(
             train["x"],
