@@ -627,11 +627,56 @@ def test_a_context_head_learns_what_its_features_cannot_tell(tmp_path, rng):
 
 def test_a_card_with_a_malformed_context_fails_to_load_naming_it():
     head = {"features": ["net_logit"], "context": {"channels": 2, "inputs": 17}}
-    with pytest.raises(WeightsError, match="context holds channels, inputs and widths"):
+    with pytest.raises(WeightsError, match=r"context holds channels, inputs, widths \(and"):
         ModelCard.from_dict({"preset": "mask.lite", "head": head})
     head["context"] = {"channels": 0, "inputs": 17, "widths": [4]}
     with pytest.raises(WeightsError, match="context sizes must be positive integers"):
         ModelCard.from_dict({"preset": "mask.lite", "head": head})
+    head["context"] = {"channels": 2, "inputs": 17, "widths": [4], "relative_counts": 18}
+    with pytest.raises(WeightsError, match="context relative_counts 18 exceeds its 17 inputs"):
+        ModelCard.from_dict({"preset": "mask.lite", "head": head})
+    head["context"]["relative_counts"] = True
+    with pytest.raises(WeightsError, match="relative_counts must be positive integers"):
+        ModelCard.from_dict({"preset": "mask.lite", "head": head})
+
+
+RELATIVE = {"channels": 2, "inputs": 33, "widths": [4, 8], "relative_counts": 16}
+
+
+def test_a_relative_context_reads_a_window_the_same_at_any_rate(rng):
+    # a window's counts all scaled by one share: the relative context's maps do not move,
+    # the absolute one's do; the share of firing pixels and the logits are read as given
+    n = rng.poisson(rng.uniform(0, 40, (1, 16, 6, 8))).astype(np.float32)
+    rest = torch.from_numpy(rng.normal(size=(1, 17, 6, 8)).astype(np.float32))
+    maps = {}
+    for name, context in (("relative", RELATIVE), ("absolute", {**RELATIVE, "relative_counts": 0})):
+        torch.manual_seed(0)
+        head = EventHead(["net_logit"], (4,), context)
+        assert ("relative_counts" in head.spec()["context"]) == (name == "relative")
+        with torch.no_grad():
+            maps[name] = [
+                head.context_maps(torch.cat([torch.log1p(torch.from_numpy(q * n)), rest], 1))
+                for q in (1.0, 0.5)
+            ]
+    torch.testing.assert_close(maps["relative"][0], maps["relative"][1], atol=1e-5, rtol=1e-5)
+    assert (maps["absolute"][0] - maps["absolute"][1]).abs().max() > 1e-3
+    head = EventHead(["net_logit"], (4,), RELATIVE)
+    empty = torch.zeros(1, 33, 6, 8)  # a window without events: its counts stay 0
+    assert torch.equal(head.context_input(empty), empty)
+
+
+def test_a_relative_context_is_trained_recorded_and_standardised_as_it_reads(tmp_path, rng):
+    parts, base = _two_parts_and_a_base(tmp_path, rng)
+    config = HeadTrainingConfig(features=("polarity",), hidden=(4,), epochs=1, per_window=200,
+                                context=2, context_widths=(4,), relative_context=True)  # fmt: skip
+    train_head(parts, base, tmp_path / "run", config, progress=False)
+    card = read_card(tmp_path / "run" / "model.safetensors")
+    assert card.head["context"]["relative_counts"] == 16  # mask.lite: 8 bins, 2 polarities
+    net = load_model(tmp_path / "run" / "model.safetensors")[0]
+    # the count channels standardised as read: log(1 + n / mean n) has a mean of order 1
+    # (log(1 + n) of sparse windows' counts, of order 0.01-0.1)
+    means = net.head.context_mean[:16]
+    assert float(means.mean()) > 0.1 and torch.isfinite(means).all()
 
 
 def test_a_context_reading_other_cells_than_the_network_gives_is_refused(tmp_path):
@@ -653,11 +698,12 @@ def test_context_columns_are_read_at_each_events_cell(tmp_path, rng):
     assert head.columns == 2 and head.numpy_params()["context"] == 1
 
 
-def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng):
+@pytest.mark.parametrize("relative", [0, 16])
+def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng, relative):
     pytest.importorskip("onnxruntime")
 
     head = EventHead(["net_logit", "support"], hidden=(4,),
-                     context={"channels": 2, "inputs": 33, "widths": [4, 8]})  # fmt: skip
+                     context={**RELATIVE, "relative_counts": relative})  # fmt: skip
     torch.manual_seed(0)
     with torch.no_grad():
         for p in head.parameters():
@@ -676,6 +722,7 @@ def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng):
         (["--scene-weight", "nan"], "--scene-weight must be positive, got nan"),
         (["--thin", "0"], "thin must be in (0, 1]"),
         (["--thin", "1.5"], "thin must be in (0, 1]"),
+        (["--relative-context"], "--relative-context needs a context (--context K)"),
     ],
 )
 def test_train_head_refuses_a_bad_context_before_reading_data(tmp_path, capsys, args, message):

@@ -49,8 +49,9 @@ def head_spec(spec: Mapping[str, Any], where: str = "model card") -> dict[str, A
     """A card's ``head`` entry checked: ``{"features": [...], "hidden": [...]}``, and
     ``"context": {"channels": k, "inputs": c, "widths": [...]}`` for a head with a learned
     whole-frame context (:class:`EventHead`; with ``"relative_counts": m``, its first ``m``
-    inputs, log event counts, are read relative to the window's mean), and ``"members": n`` (2 or more) for an
-    ensemble of ``n`` such heads (:class:`EventHeadEnsemble`).
+    inputs, log event counts, are read relative to the window's mean), and
+    ``"members": n`` (2 or more) for an ensemble of ``n`` such heads
+    (:class:`EventHeadEnsemble`).
 
     Examples
     --------
@@ -241,7 +242,7 @@ class EventHead(nn.Module):
         m = self.context.get("relative_counts", 0) if self.context else 0
         if not m:
             return cells
-        n = torch.expm1(cells[:, :m]).clamp(min=0.0)
+        n = (torch.exp(cells[:, :m]) - 1.0).clamp(min=0.0)  # expm1: not in ONNX opset 17
         mean = n.mean(dim=(1, 2, 3), keepdim=True)
         return torch.cat([torch.log1p(n / mean.clamp(min=1e-6)), cells[:, m:]], 1)
 

@@ -622,8 +622,9 @@ def fit_context_head(
     head = EventHead(config.features, config.hidden, context)
     n = len(data["sizes"])
     sample = [  # each window's cells as the context reads them (relative to its own mean)
-        head.context_input(torch.from_numpy(data[f"cells_{i:06d}"].astype(np.float32))[None])[0]
-        .numpy()
+        head.context_input(torch.from_numpy(data[f"cells_{i:06d}"].astype(np.float32))[None])[
+            0
+        ].numpy()
         for i in range(0, n, max(1, n // 64))
     ]
     flat = np.concatenate([c.reshape(c.shape[0], -1) for c in sample], 1).astype(np.float32)
