@@ -621,12 +621,12 @@ def fit_context_head(
         context["relative_counts"] = count_channels
     head = EventHead(config.features, config.hidden, context)
     n = len(data["sizes"])
-    sample = [  # each window's cells as the context reads them (relative to its own mean)
-        head.context_input(torch.from_numpy(data[f"cells_{i:06d}"].astype(np.float32))[None])[
-            0
-        ].numpy()
-        for i in range(0, n, max(1, n // 64))
-    ]
+
+    def read(i: int) -> np.ndarray:  # a window's cells as the context reads them
+        cells = torch.from_numpy(data[f"cells_{i:06d}"].astype(np.float32))[None]
+        return head.context_input(cells)[0].numpy()
+
+    sample = [read(i) for i in range(0, n, max(1, n // 64))]
     flat = np.concatenate([c.reshape(c.shape[0], -1) for c in sample], 1).astype(np.float32)
     head.standardise_on(  # the cells of windows of every size, as (1, channels, 1, cells)
         torch.from_numpy(np.asarray(data["x"], np.float32)), torch.from_numpy(flat)[None, :, None]
