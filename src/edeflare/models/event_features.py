@@ -163,7 +163,7 @@ def relative_features(
         a, b = (counts[k] for k in RELATIVE_FEATURES[name])
         if name == "rel_support":  # the event and its 5x5 square against 25 pixels' share
             out[name] = np.log((1.0 + a) / np.maximum(25.0 * b, 1e-9))
-        elif name == "rel_since":  # ms since the last x events of the pixel / window in ms
+        elif name == "rel_since":  # the gap in ms x the pixel's events / the window in ms
             out[name] = np.log1p(a * b / (window_us / 1000.0))
         else:  # every event's pixel and cell hold one event at least
             out[name] = np.log(np.maximum(a, 1e-9) / np.maximum(b, 1e-9))

@@ -207,14 +207,14 @@ class EventHead(nn.Module):
     def standardise_on(self, x: torch.Tensor, cells: torch.Tensor | None = None) -> None:
         """Set the standardisation to the mean and standard deviation of features ``x``
         (per column) and, with a context, of ``cells`` (per channel, over every cell of
-        the windows ``(N, inputs, h, w)``)."""
+        the windows ``(N, inputs, h, w)``, given as the context reads them:
+        :meth:`context_input`)."""
         n = len(self.feature_names)
         with torch.no_grad():
             self.mean[:n] = x[:, :n].mean(0)
             self.scale[:n] = x[:, :n].std(0).clamp(min=1e-3)
             if self.context and cells is not None:
                 flat = cells.transpose(0, 1).reshape(cells.shape[1], -1).double()
-                # cells as the context reads them (context_input): standardise those
                 self.context_mean.copy_(flat.mean(1))
                 self.context_scale.copy_(flat.std(1).clamp(min=1e-3))
 
