@@ -185,7 +185,7 @@ def test_demo_writes_everything(tmp_path, capsys):
     table = json.loads((out / "metrics.json").read_text())
     values = table["values"]
     assert set(values) == {
-        "raw", "voxel", "efr", "pfd-a", "pfd-b", "E-DeflareNet", "eflare", "dv-fastdecay"
+        "raw", "voxel", "efr", "pfd-a", "pfd-b", "night", "eflare", "dv-fastdecay"
     }  # fmt: skip
     for name, row in values.items():  # every metric a real number in its range
         assert all(math.isfinite(v) for v in row.values()), name
@@ -193,22 +193,22 @@ def test_demo_writes_everything(tmp_path, capsys):
         assert read_events(out / f"{name}.h5").events.size == events[name]
     # The scene has flare to remove (15 % of its events): the default model removes it
     # and keeps most of the rest; on the paper's metrics it beats the input.
-    model, flare = values["E-DeflareNet"], values["raw"]
+    model, flare = values["night"], values["raw"]
     assert model["chamfer"] < 0.1 * flare["chamfer"] and model["mse"] < flare["mse"]
     key = lambda e: ((e["t"].astype(np.int64) * 512 + e["x"]) * 512 + e["y"]) * 2 + e["p"]  # noqa: E731
     gt = read_events(out / "ground_truth.h5").events
     is_gt = np.isin(key(inp), key(gt))
-    kept = np.isin(key(inp), key(read_events(out / "E-DeflareNet.h5").events))
+    kept = np.isin(key(inp), key(read_events(out / "night.h5").events))
     assert (~is_gt).mean() > 0.1  # flare to remove: 15 %
     assert 1 - kept[~is_gt].mean() > 0.95 and kept[is_gt].mean() > 0.8  # 98.0 %, 90.7 %
     # the same shares, in the summary and the table (the input itself removes nothing)
-    assert summary["flare_removed"]["E-DeflareNet"] == round(1 - kept[~is_gt].mean(), 4)
-    assert summary["true_kept"]["E-DeflareNet"] == round(kept[is_gt].mean(), 4)
+    assert summary["flare_removed"]["night"] == round(1 - kept[~is_gt].mean(), 4)
+    assert summary["true_kept"]["night"] == round(kept[is_gt].mean(), 4)
     assert summary["flare_removed"]["raw"] == 0.0 and summary["true_kept"]["raw"] == 1.0
-    shares_row = f"| E-DeflareNet | {100 * (1 - kept[~is_gt].mean()):.1f} % |"
+    shares_row = f"| night | {100 * (1 - kept[~is_gt].mean()):.1f} % |"
     assert shares_row in (out / "metrics.md").read_text()
     assert events["pfd-b"] < events["input"] and events["efr"] < events["input"]
-    assert "| E-DeflareNet |" in (out / "metrics.md").read_text()
+    assert "| night |" in (out / "metrics.md").read_text()
     assert summary["scene"]["sensor_size"] == [346, 260]
     assert not [p.name for p in out.iterdir() if ".partial" in p.name]
     assert str(out) in capsys.readouterr().out

@@ -607,7 +607,7 @@ def test_readme_demo_shares_are_todays(tmp_path):
         r"removes ([\d.]+) % of the flare events and keeps ([\d.]+) % of the true", readme
     )
     assert m, "the README's demo sentence"
-    removed, kept = summary["flare_removed"]["E-DeflareNet"], summary["true_kept"]["E-DeflareNet"]
+    removed, kept = summary["flare_removed"]["night"], summary["true_kept"]["night"]
     assert (m.group(1), m.group(2)) == (f"{100 * removed:.1f}", f"{100 * kept:.1f}")
 
 

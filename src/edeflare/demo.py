@@ -43,7 +43,7 @@ def _demo_methods() -> dict[str, Any]:
     problem), rather than showing a table without its main row.
     """
     from .methods import create_method
-    from .models.infer import bundled_weights
+    from .models.infer import DEFAULT_MODEL, bundled_weights
 
     methods = {name: create_method(name) for name in ("raw", "voxel", "efr", "pfd-a", "pfd-b")}
     try:
@@ -56,7 +56,7 @@ def _demo_methods() -> dict[str, Any]:
     # The default model (night), the bundled voxel-to-voxel model of the uncalibrated
     # simulator, and the filter users already run where dv-processing is installed
     # (the dv extra).
-    methods["E-DeflareNet"] = create_method("model")
+    methods[DEFAULT_MODEL] = create_method("model")
     methods["eflare"] = create_method("model", weights="eflare")
     if importlib.util.find_spec("dv_processing") is not None:
         methods["dv-fastdecay"] = create_method("dv-fastdecay")

@@ -20,7 +20,7 @@ __all__ = ["ModelMethod", "ModelParams"]
 class _ModelOptions:
     """The ``model`` method's own parameters (the rules' knobs join them in ModelParams)."""
 
-    cli_title: ClassVar[str] = "model (E-DeflareNet)"
+    cli_title: ClassVar[str] = "model (a bundled or trained network; default night)"
 
     weights: str | os.PathLike[str] | None = dataclasses.field(
         default=None,
