@@ -14,14 +14,10 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from _half import score_half, write_half
 
 import edeflare.models.infer as infer
-from edeflare.eval.score import score_recording
-from edeflare.io import read_events, write_events
-from edeflare.lights import bundled_lights
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
-FILE = "prophesee_gen3_rotating_light.raw"
 RATES = ("rate_pixel", "rate_8", "rate_32", "rate_128", "rate_window", "support")
 ARMS = {"as thinned": {}, "counts x 2": dict.fromkeys(RATES, 2.0),
         "counts x 2, since / 2": {**dict.fromkeys(RATES, 2.0), "since_pixel": 0.5},
@@ -39,26 +35,14 @@ def run(scales: dict[str, float], path: Path) -> list[float]:
 
     infer.window_features = scaled
     try:
-        res = score_recording(
-            path,
-            ["model"],
-            lights=bundled_lights(FILE),
-            phases=1,
-            method_params={"model": {"weights": "learned"}},
-        )
+        return score_half(path, {"weights": "learned"})
     finally:
         infer.window_features = original
-    m = res.rows[0]
-    return [round(float(v), 4) for v in (m.flare_removed, m.light_kept, m.combined)]
 
 
-r = read_events(REAL / FILE)
 out = {}
 with tempfile.TemporaryDirectory() as tmp:
-    path = Path(tmp) / "half.h5"
-    write_events(
-        path, r.events[np.random.default_rng(0).random(r.events.size) < 0.5], r.sensor_size
-    )
+    path = write_half(tmp)
     for arm, scales in ARMS.items():
         out[arm] = run(scales, path)
         print(arm, out[arm], flush=True)

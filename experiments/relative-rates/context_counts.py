@@ -13,18 +13,15 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import torch
 
-from edeflare.eval.score import score_recording
-from edeflare.io import read_events, write_events
-from edeflare.lights import bundled_lights
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "rate-thinning"))
+from _half import score_half, write_half
+
 from edeflare.models.event_head import EventHead
 from edeflare.models.infer import resolve_weights
 from edeflare.models.weights import read_card
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
-FILE = "prophesee_gen3_rotating_light.raw"
 weights, dst = sys.argv[1], Path(sys.argv[2])
 bins = read_card(resolve_weights(weights)).bins
 original = EventHead.context_maps
@@ -39,26 +36,14 @@ def run(factor: float, path: Path) -> list[float]:
 
     EventHead.context_maps = scaled
     try:
-        res = score_recording(
-            path,
-            ["model"],
-            lights=bundled_lights(FILE),
-            phases=1,
-            method_params={"model": {"weights": weights, "runtime": "torch"}},
-        )
+        return score_half(path, {"weights": weights, "runtime": "torch"})
     finally:
         EventHead.context_maps = original
-    m = res.rows[0]
-    return [round(float(v), 4) for v in (m.flare_removed, m.light_kept, m.combined)]
 
 
-r = read_events(REAL / FILE)
 out: dict[str, object] = {"weights": weights}
 with tempfile.TemporaryDirectory() as tmp:
-    path = Path(tmp) / "half.h5"
-    write_events(
-        path, r.events[np.random.default_rng(0).random(r.events.size) < 0.5], r.sensor_size
-    )
+    path = write_half(tmp)
     for arm, factor in (("as thinned", 1.0), ("context counts x 2", 2.0)):
         out[arm] = run(factor, path)
         print(arm, out[arm], flush=True)
