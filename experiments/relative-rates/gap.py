@@ -1,0 +1,72 @@
+"""Where the night recording's flare differs from the simulated steady lamps' flare, as a
+run's head reads them: each feature's median (and the head's keep logit's) over the night
+recording's annotated flare (halo and ghost), light and scene events (one windowing), and
+over the run's own drawn test rows of a part in windows where no light is found, flare and
+the rest. Measures only; nothing here is chosen.
+
+Run: python experiments/relative-rates/gap.py RUN OUT.json FAERY_DATA PART DATA_FOLDER...
+(RUN: a train-head run folder; PART: e.g. steady-640; DATA_FOLDER: RUN's data, in its order)
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "experiments" / "real-labels"))
+from fit import real_recordings  # noqa: E402
+
+from edeflare.data.folders import dataset_folders  # noqa: E402
+from edeflare.io.sequence import list_sequences  # noqa: E402
+from edeflare.models.event_head import head_logits  # noqa: E402
+from edeflare.models.head_training import _group, context_columns  # noqa: E402
+from edeflare.models.head_tuning import recording_inputs, region_labels  # noqa: E402
+from edeflare.models.infer import ModelDeflarer  # noqa: E402
+
+run, dst, faery, part = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3]), sys.argv[4]
+d = ModelDeflarer(run / "model.safetensors", runtime="torch", batch_windows=8)
+head = d.model.head
+names = [
+    *head.feature_names,
+    *(f"context_{i}" for i in range(head.columns - len(head.feature_names))),
+]
+params = d.head_params
+
+
+def medians(columns: np.ndarray) -> dict[str, float]:
+    row = {n: float(np.median(columns[:, i])) for i, n in enumerate(names)}
+    row["keep_logit"] = float(np.median(head_logits(params, columns)))
+    row["events"] = int(columns.shape[0])
+    return {k: round(v, 3) for k, v in row.items()}
+
+
+out: dict[str, dict[str, float]] = {}
+name, events, size, lights = next(r for r in real_recordings(faery) if r[0] == "night_recording")
+columns = recording_inputs(d, events, size, [0])[0]
+code = region_labels(events, size, lights)
+for label, c in (
+    ("night recording: flare", 2),
+    ("night recording: light", 1),
+    ("night recording: scene", 3),
+):
+    out[label] = medians(columns[code == c])
+(cache,) = run.glob("features-test-*.npz")
+with np.load(cache) as z:
+    data = {k: z[k] for k in z.files}
+folders = [f for arg in sys.argv[5:] for f in dataset_folders(arg)]
+files = [str(f) for f in folders if (f / "test").is_dir() for f in list_sequences(f / "test")]
+groups = np.array([_group(files, int(s)) for s in data["source"]])
+rows = context_columns(head, data)
+free = data["x"][:, head.feature_names.index("light_free")] > 0.5
+y = data["y"].astype(bool)
+for label, m in ((f"{part}, no light found: flare", ~y), (f"{part}, no light found: rest", y)):
+    out[label] = medians(rows[(groups == part) & free & m])
+dst.write_text(json.dumps(out, indent=1) + "\n")
+keys = list(next(iter(out.values())))
+print("| feature | " + " | ".join(out) + " |")
+print("|---|" + "---:|" * len(out))
+for k in keys:
+    print(f"| {k} | " + " | ".join(str(v[k]) for v in out.values()) + " |")
