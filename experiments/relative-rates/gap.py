@@ -1,8 +1,8 @@
 """Where the night recording's flare differs from the simulated steady lamps' flare, as a
-run's head reads them: each feature's median (and the head's keep logit's) over the night
-recording's annotated flare (halo and ghost), light and scene events (one windowing), and
-over the run's own drawn test rows of a part in windows where no light is found, flare and
-the rest. Measures only; nothing here is chosen.
+run's head reads them: each feature's median (and the head's keep logit's; the share of ON
+events) over the night recording's annotated flare (halo and ghost), light and scene events
+(one windowing), and over the run's own drawn test rows of a part in windows where no light
+is found, flare and the rest. Measures only; nothing here is chosen.
 
 Run: python experiments/relative-rates/gap.py RUN OUT.json FAERY_DATA PART DATA_FOLDER...
 (RUN: a train-head run folder; PART: e.g. steady-640; DATA_FOLDER: RUN's data, in its order)
@@ -39,6 +39,7 @@ params = d.head_params
 def medians(columns: np.ndarray) -> dict[str, float]:
     row = {n: float(np.median(columns[:, i])) for i, n in enumerate(names)}
     row["keep_logit"] = float(np.median(head_logits(params, columns)))
+    row["on_share"] = float(np.mean(columns[:, names.index("polarity")]))  # a mean
     row["events"] = int(columns.shape[0])
     return {k: round(v, 3) for k, v in row.items()}
 
@@ -47,12 +48,9 @@ out: dict[str, dict[str, float]] = {}
 name, events, size, lights = next(r for r in real_recordings(faery) if r[0] == "night_recording")
 columns = recording_inputs(d, events, size, [0])[0]
 code = region_labels(events, size, lights)
-for label, c in (
-    ("night recording: flare", 2),
-    ("night recording: light", 1),
-    ("night recording: scene", 3),
-):
-    out[label] = medians(columns[code == c])
+for label, c in (("flare", 2), ("light", 1), ("scene", 3)):
+    if (code == c).any():  # the scene: only where the annotation scores it
+        out[f"night recording: {label}"] = medians(columns[code == c])
 (cache,) = run.glob("features-test-*.npz")
 with np.load(cache) as z:
     data = {k: z[k] for k in z.files}
