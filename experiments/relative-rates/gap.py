@@ -17,12 +17,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "experiments" / "real-labels"))
+from _own_rows import own_test_rows  # noqa: E402
 from fit import real_recordings  # noqa: E402
 
-from edeflare.data.folders import dataset_folders  # noqa: E402
-from edeflare.io.sequence import list_sequences  # noqa: E402
 from edeflare.models.event_head import head_logits  # noqa: E402
-from edeflare.models.head_training import _group, context_columns  # noqa: E402
+from edeflare.models.head_training import context_columns  # noqa: E402
 from edeflare.models.head_tuning import recording_inputs, region_labels  # noqa: E402
 from edeflare.models.infer import ModelDeflarer  # noqa: E402
 
@@ -51,12 +50,7 @@ code = region_labels(events, size, lights)
 for label, c in (("flare", 2), ("light", 1), ("scene", 3)):
     if (code == c).any():  # the scene: only where the annotation scores it
         out[f"night recording: {label}"] = medians(columns[code == c])
-(cache,) = run.glob("features-test-*.npz")
-with np.load(cache) as z:
-    data = {k: z[k] for k in z.files}
-folders = [f for arg in sys.argv[5:] for f in dataset_folders(arg)]
-files = [str(f) for f in folders if (f / "test").is_dir() for f in list_sequences(f / "test")]
-groups = np.array([_group(files, int(s)) for s in data["source"]])
+data, groups = own_test_rows(run, sys.argv[5:])
 rows = context_columns(head, data)
 free = data["x"][:, head.feature_names.index("light_free")] > 0.5
 y = data["y"].astype(bool)

@@ -10,22 +10,15 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
+from _own_rows import own_test_rows
 
-from edeflare.data.folders import dataset_folders
-from edeflare.io.sequence import list_sequences
 from edeflare.models.event_head import head_logits
-from edeflare.models.head_training import _group, context_columns
+from edeflare.models.head_training import context_columns
 from edeflare.models.mask_kernels import keep_logit_threshold
 from edeflare.models.weights import load_model
 
 run, dst = Path(sys.argv[1]), Path(sys.argv[2])
-(cache,) = run.glob("features-test-*.npz")
-with np.load(cache) as z:
-    data = {k: z[k] for k in z.files}
-folders = [f for arg in sys.argv[3:] for f in dataset_folders(arg)]  # train-head's order
-files = [str(f) for d in folders if (d / "test").is_dir() for f in list_sequences(d / "test")]
-groups = np.array([_group(files, int(s)) for s in data["source"]])
+data, groups = own_test_rows(run, sys.argv[3:])
 net, card = load_model(run / "model.safetensors")[:2]
 head = net.head
 lit = data["x"][:, head.feature_names.index("light_free")] < 0.5
