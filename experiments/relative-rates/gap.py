@@ -16,10 +16,12 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-sys.path.insert(0, str(ROOT / "experiments" / "real-labels"))
 from _own_rows import own_test_rows  # noqa: E402
-from fit import real_recordings  # noqa: E402
+from night_recording import HERE as BENCH  # noqa: E402
+from night_recording import faery_file  # noqa: E402
 
+from edeflare.io import read_events  # noqa: E402
+from edeflare.lights import load_lights  # noqa: E402
 from edeflare.models.event_head import head_logits  # noqa: E402
 from edeflare.models.head_training import context_columns  # noqa: E402
 from edeflare.models.head_tuning import recording_inputs, region_labels  # noqa: E402
@@ -44,7 +46,9 @@ def medians(columns: np.ndarray) -> dict[str, float]:
 
 
 out: dict[str, dict[str, float]] = {}
-name, events, size, lights = next(r for r in real_recordings(faery) if r[0] == "night_recording")
+recording = read_events(faery_file(faery / "evt3.raw"))  # only it, as fit.py reads it
+events, size = recording.events, recording.sensor_size
+lights = load_lights(BENCH / "night_recording_lights.json", size)
 columns = recording_inputs(d, events, size, [0])[0]
 code = region_labels(events, size, lights)
 for label, c in (("flare", 2), ("light", 1), ("scene", 3)):
