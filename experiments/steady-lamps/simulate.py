@@ -9,7 +9,14 @@ at 5-50 % (log-uniform) times (2 r / d) rather than `eflare-night-sparse`'s 0.3-
 (2 r / d)^2. Every one of these ranges was set after the night recording (faery's
 `evt3.raw`) was measured (experiments/light-test): that recording is no evidence for them.
 
-Run: python experiments/steady-lamps/simulate.py OUT   (resumes; 2 workers)
+Two more parts (``--dark``: `steady-dark-640`, 24 and 3; `steady-dark-1280`, 8 and 1) put
+the same lamps over a dark field that they dominate: the street's pan, shake, zoom and
+texture cut to a night sky's (pan 0.2-3 px/s, shake up to 0.1 px, contrast 0.01-0.05, no
+lamps of its own, its noise 0.01-0.1 events per pixel and second) and the sensing stage's
+background activity to 0.02-0.5 events per pixel and second (0.1-5). Set after relative-rates' gap_hot.py measured the night
+recording's windows: that recording is no evidence for them either.
+
+Run: python experiments/steady-lamps/simulate.py OUT [--dark]   (resumes; 2 workers)
 """
 
 from __future__ import annotations
@@ -37,6 +44,14 @@ _SCENE_HD = dataclasses.replace(
     pan_px_per_s=tuple(v * _HD for v in R._SPARSE_NIGHT_SCENE.pan_px_per_s),
     shake_px=tuple(v * _HD for v in R._SPARSE_NIGHT_SCENE.shake_px),
 )
+_DARK_SCENE = dataclasses.replace(
+    R._SPARSE_NIGHT_SCENE, pan_px_per_s=(0.2, 3.0), shake_px=(0.0, 0.1), zoom_per_s=(0.0, 0.02),
+    texture_contrast=(0.01, 0.05), lamps=(0, 0), noise_rate_hz=(0.01, 0.1),
+)  # fmt: skip
+_DARK_SCENE_HD = dataclasses.replace(
+    _DARK_SCENE, pan_px_per_s=(0.2 * _HD, 3.0 * _HD), shake_px=(0.0, 0.1 * _HD)
+)
+_DARK_SENSING = dataclasses.replace(_SENSING, noise_rate=(0.02, 0.5))
 PARTS = {
     "steady-640": R.Recipe(
         name="steady-lamps.steady-640", sequences=27, test_sequences=3, sensor_size=(640, 480),
@@ -49,11 +64,24 @@ PARTS = {
         config=R.FlareConfig(script=_SCRIPT_HD, sensing=_SENSING, components=True),
     ),
 }  # fmt: skip
+DARK_PARTS = {
+    "steady-dark-640": R.Recipe(
+        name="steady-lamps.steady-dark-640", sequences=27, test_sequences=3,
+        sensor_size=(640, 480), seed=403, scene=_DARK_SCENE,
+        config=R.FlareConfig(script=_SCRIPT, sensing=_DARK_SENSING),
+    ),
+    "steady-dark-1280": R.Recipe(
+        name="steady-lamps.steady-dark-1280", sequences=9, test_sequences=1,
+        sensor_size=(1280, 720), seed=404, scene=_DARK_SCENE_HD,
+        config=R.FlareConfig(script=_SCRIPT_HD, sensing=_DARK_SENSING, components=True),
+    ),
+}  # fmt: skip
 
 
 def main() -> None:
     out = Path(sys.argv[1])
-    for name, recipe in PARTS.items():
+    parts = DARK_PARTS if "--dark" in sys.argv[2:] else PARTS
+    for name, recipe in parts.items():
         generate_dataset(recipe, out / name, workers=2, progress=False)
         print(f"{name}: done", flush=True)
 
