@@ -1,9 +1,11 @@
 """gap.py's comparison with the simulated events to remove split by what they are: the
 scattered light (events of the sequence's stored ``flare`` stream) and the hot pixels
 (the sensing stage's step 6: events to remove that no flare event matches). gap.py pooled
-the two as "flare". Features as a head of `learned`'s form reads them (the bundled
-`learned`: its network logit and 21 features; the six rate-relative ones derived from
-them as `relative_features` does); no head's decision enters. Measures only.
+the two as "flare". What is kept is split into the light's own events (matched to its
+``light`` stream) and the rest; ``events`` counts each group. Features as a head of
+`learned`'s form reads them (the bundled `learned`: its network logit and 21 features; the
+six rate-relative ones derived from them as `relative_features` does); no head's decision
+enters. Measures only.
 
 Run: python experiments/relative-rates/gap_hot.py OUT.json FAERY_DATA SEQUENCE_FOLDER...
 (SEQUENCE_FOLDER: e.g. STEADY/steady-640/test; every sequence of each, one windowing)
@@ -64,13 +66,13 @@ for label, c in (("flare", 2), ("light", 1)):
 
 for folder in folders:
     parts: dict[str, list[np.ndarray]] = {}
-    groups = {"scattered flare": [], "hot pixels": [], "kept": []}
+    groups = {"scattered flare": [], "hot pixels": [], "light": [], "kept, not the light": []}
     for path in list_sequences(folder):
         inp, gt, size, _, _ = read_sequence(path)
         keep = keep_labels(inp, gt)
         light = _component(path, "light")
-        if light is not None:
-            keep |= keep_labels(inp, light)
+        of_light = keep_labels(inp, light) if light is not None else np.zeros(inp.size, bool)
+        keep |= of_light
         flare = _component(path, "flare")
         of_flare = keep_labels(inp, flare) if flare is not None else np.zeros(inp.size, bool)
         c = features(inp, size)
@@ -79,7 +81,8 @@ for folder in folders:
             parts.setdefault(k, []).append(v)
         groups["scattered flare"].append(~keep & of_flare & free)
         groups["hot pixels"].append(~keep & ~of_flare & free)
-        groups["kept"].append(keep & free)
+        groups["light"].append(of_light & free)
+        groups["kept, not the light"].append(keep & ~of_light & free)
     cols = {k: np.concatenate(v) for k, v in parts.items()}
     name = f"{folder.parent.name}/{folder.name}"
     for label, masks in groups.items():
