@@ -2,7 +2,8 @@
 scattered light (events of the sequence's stored ``flare`` stream) and the hot pixels
 (the sensing stage's step 6: events to remove that no flare event matches). gap.py pooled
 the two as "flare". What is kept is split into the light's own events (matched to its
-``light`` stream) and the rest; ``events`` counts each group. Features as a head of
+``light`` stream) and the rest; the scattered light also within 6 radii of the light, as
+far as the annotation's halo reaches; ``events`` counts each group. Features as a head of
 `learned`'s form reads them (the bundled `learned`: its network logit and 21 features; the
 six rate-relative ones derived from them as `relative_features` does); no head's decision
 enters. Measures only.
@@ -48,6 +49,24 @@ def features(events: np.ndarray, size: tuple[int, int]) -> dict[str, np.ndarray]
     return out
 
 
+def within_halo(inp: np.ndarray, light: np.ndarray | None, factor: float = 6.0) -> np.ndarray:
+    """Which events lie within ``factor`` radii of the light's centre in their window, as
+    the annotation's halo reaches (the light's events' mean position and the radius of a
+    disc of its distinct pixels, per window of the network's length)."""
+    near = np.zeros(inp.size, bool)
+    if light is None or not light.size:
+        return near
+    w_in, w_li = inp["t"] // d.window_us, light["t"] // d.window_us
+    for w in np.unique(w_li):
+        li = light[w_li == w]
+        cx, cy = li["x"].mean(), li["y"].mean()
+        radius = np.sqrt(np.unique(li["y"].astype(np.int64) * 65536 + li["x"]).size / np.pi)
+        m = w_in == w
+        dist = np.hypot(inp["x"][m] - cx, inp["y"][m] - cy)
+        near[np.flatnonzero(m)] = dist <= factor * radius
+    return near
+
+
 def medians(cols: dict[str, np.ndarray], m: np.ndarray) -> dict[str, float]:
     row = {k: float(np.median(cols[k][m])) for k in REPORTED}
     row["on_share"] = float(np.mean(cols["on"][m]))
@@ -66,7 +85,10 @@ for label, c in (("flare", 2), ("light", 1)):
 
 for folder in folders:
     parts: dict[str, list[np.ndarray]] = {}
-    groups = {"scattered flare": [], "hot pixels": [], "light": [], "kept, not the light": []}
+    groups: dict[str, list[np.ndarray]] = {
+        "scattered flare": [], "scattered flare within 6 radii": [], "hot pixels": [],
+        "light": [], "kept, not the light": [],
+    }  # fmt: skip
     for path in list_sequences(folder):
         inp, gt, size, _, _ = read_sequence(path)
         keep = keep_labels(inp, gt)
@@ -80,6 +102,8 @@ for folder in folders:
         for k, v in c.items():
             parts.setdefault(k, []).append(v)
         groups["scattered flare"].append(~keep & of_flare & free)
+        near = within_halo(inp, light)
+        groups["scattered flare within 6 radii"].append(~keep & of_flare & free & near)
         groups["hot pixels"].append(~keep & ~of_flare & free)
         groups["light"].append(of_light & free)
         groups["kept, not the light"].append(keep & ~of_light & free)
