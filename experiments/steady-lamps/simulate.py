@@ -13,10 +13,15 @@ Two more parts (``--dark``: `steady-dark-640`, 24 and 3; `steady-dark-1280`, 8 a
 the same lamps over a dark field that they dominate: the street's pan, shake, zoom and
 texture cut to a night sky's (pan 0.2-3 px/s, shake up to 0.1 px, contrast 0.01-0.05, no
 lamps of its own, its noise 0.01-0.1 events per pixel and second) and the sensing stage's
-background activity to 0.02-0.5 events per pixel and second (0.1-5). Set after relative-rates' gap_hot.py measured the night
-recording's windows: that recording is no evidence for them either.
+background activity to 0.02-0.5 events per pixel and second (0.1-5). Set after
+relative-rates' gap_hot.py measured the night recording's windows: that recording is no
+evidence for them either.
 
-Run: python experiments/steady-lamps/simulate.py OUT [--dark]   (resumes; 2 workers)
+Two more (``--bright``: `steady-bright-640`, `steady-bright-1280`, the dark parts' sizes)
+have the dark parts' field with more of the scattered light surviving: 30-100 % times
+(2 r / d)^0.5. Set after the dark parts were measured.
+
+Run: python experiments/steady-lamps/simulate.py OUT [--dark | --bright]   (resumes; 2 workers)
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ _DARK_SCENE_HD = dataclasses.replace(
     _DARK_SCENE, pan_px_per_s=(0.2 * _HD, 3.0 * _HD), shake_px=(0.0, 0.1 * _HD)
 )
 _DARK_SENSING = dataclasses.replace(_SENSING, noise_rate=(0.02, 0.5))
+_BRIGHT_SENSING = dataclasses.replace(_DARK_SENSING, survival=(0.3, 1.0), falloff=0.5)
 PARTS = {
     "steady-640": R.Recipe(
         name="steady-lamps.steady-640", sequences=27, test_sequences=3, sensor_size=(640, 480),
@@ -77,10 +83,20 @@ DARK_PARTS = {
     ),
 }  # fmt: skip
 
+BRIGHT_PARTS = {
+    name.replace("dark", "bright"): dataclasses.replace(
+        recipe, name=recipe.name.replace("dark", "bright"), seed=recipe.seed + 2,
+        config=dataclasses.replace(recipe.config, sensing=_BRIGHT_SENSING),
+    )
+    for name, recipe in DARK_PARTS.items()
+}  # fmt: skip
+
 
 def main() -> None:
     out = Path(sys.argv[1])
     parts = DARK_PARTS if "--dark" in sys.argv[2:] else PARTS
+    if "--bright" in sys.argv[2:]:
+        parts = BRIGHT_PARTS
     for name, recipe in parts.items():
         generate_dataset(recipe, out / name, workers=2, progress=False)
         print(f"{name}: done", flush=True)
