@@ -8,7 +8,6 @@ Run: python experiments/relative-rates/gap.py RUN OUT.json FAERY_DATA PART DATA_
 (RUN: a train-head run folder; PART: e.g. steady-640; DATA_FOLDER: RUN's data, in its order)
 """
 
-import json
 import sys
 from pathlib import Path
 
@@ -16,7 +15,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _own_rows import own_test_rows  # noqa: E402
+from _own_rows import own_test_rows, write_medians  # noqa: E402
 from night_recording import HERE as BENCH  # noqa: E402
 from night_recording import faery_file  # noqa: E402
 
@@ -60,9 +59,4 @@ free = data["x"][:, head.feature_names.index("light_free")] > 0.5
 y = data["y"].astype(bool)
 for label, m in ((f"{part}, no light found: flare", ~y), (f"{part}, no light found: rest", y)):
     out[label] = medians(rows[(groups == part) & free & m])
-dst.write_text(json.dumps(out, indent=1) + "\n")
-keys = list(next(iter(out.values())))
-print("| feature | " + " | ".join(out) + " |")
-print("|---|" + "---:|" * len(out))
-for k in keys:
-    print(f"| {k} | " + " | ".join(str(v[k]) for v in out.values()) + " |")
+write_medians(dst, out, "feature")

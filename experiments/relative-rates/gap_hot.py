@@ -12,7 +12,6 @@ Run: python experiments/relative-rates/gap_hot.py OUT.json FAERY_DATA SEQUENCE_F
 (SEQUENCE_FOLDER: e.g. STEADY/steady-640/test; every sequence of each, one windowing)
 """
 
-import json
 import sys
 from pathlib import Path
 
@@ -20,6 +19,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
+from _own_rows import write_medians  # noqa: E402
 from night_recording import HERE as BENCH  # noqa: E402
 from night_recording import faery_file  # noqa: E402
 
@@ -115,9 +115,4 @@ for folder in folders:
             out[f"{name}, no light found: {label}"] = medians(cols, m)
             print(name, label, out[f"{name}, no light found: {label}"], flush=True)
 
-dst.write_text(json.dumps(out, indent=1) + "\n")
-keys = list(next(iter(out.values())))
-print("| median of | " + " | ".join(out) + " |")
-print("|---|" + "---:|" * len(out))
-for k in keys:
-    print(f"| {k} | " + " | ".join(str(v[k]) for v in out.values()) + " |")
+write_medians(dst, out, "median of")

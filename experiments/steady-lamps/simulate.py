@@ -44,18 +44,23 @@ _SCRIPT_HD = dataclasses.replace(
     ghost_radius_px=tuple(v * _HD for v in _SCRIPT.ghost_radius_px),
     travel_px=(0.0, 15.0),
 )
-_SCENE_HD = dataclasses.replace(
-    R._SPARSE_NIGHT_SCENE,
-    pan_px_per_s=tuple(v * _HD for v in R._SPARSE_NIGHT_SCENE.pan_px_per_s),
-    shake_px=tuple(v * _HD for v in R._SPARSE_NIGHT_SCENE.shake_px),
-)
+
+
+def _hd(scene: R.SceneConfig) -> R.SceneConfig:
+    """``scene`` at 1280x720: its pan and shake in pixels x1.5."""
+    return dataclasses.replace(
+        scene,
+        pan_px_per_s=tuple(v * _HD for v in scene.pan_px_per_s),
+        shake_px=tuple(v * _HD for v in scene.shake_px),
+    )
+
+
+_SCENE_HD = _hd(R._SPARSE_NIGHT_SCENE)
 _DARK_SCENE = dataclasses.replace(
     R._SPARSE_NIGHT_SCENE, pan_px_per_s=(0.2, 3.0), shake_px=(0.0, 0.1), zoom_per_s=(0.0, 0.02),
     texture_contrast=(0.01, 0.05), lamps=(0, 0), noise_rate_hz=(0.01, 0.1),
 )  # fmt: skip
-_DARK_SCENE_HD = dataclasses.replace(
-    _DARK_SCENE, pan_px_per_s=(0.2 * _HD, 3.0 * _HD), shake_px=(0.0, 0.1 * _HD)
-)
+_DARK_SCENE_HD = _hd(_DARK_SCENE)
 _DARK_SENSING = dataclasses.replace(_SENSING, noise_rate=(0.02, 0.5))
 _BRIGHT_SENSING = dataclasses.replace(_DARK_SENSING, survival=(0.3, 1.0), falloff=0.5)
 PARTS = {
@@ -94,9 +99,8 @@ BRIGHT_PARTS = {
 
 def main() -> None:
     out = Path(sys.argv[1])
-    parts = DARK_PARTS if "--dark" in sys.argv[2:] else PARTS
-    if "--bright" in sys.argv[2:]:
-        parts = BRIGHT_PARTS
+    variant = sys.argv[2] if len(sys.argv) > 2 else ""
+    parts = {"": PARTS, "--dark": DARK_PARTS, "--bright": BRIGHT_PARTS}[variant]
     for name, recipe in parts.items():
         generate_dataset(recipe, out / name, workers=2, progress=False)
         print(f"{name}: done", flush=True)
