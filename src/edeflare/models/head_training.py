@@ -421,7 +421,7 @@ def context_at(maps: torch.Tensor, window: torch.Tensor, cell: torch.Tensor) -> 
 
     Advanced indexing's backward adds them from several threads in no fixed order: two fits
     of one command on the same drawn rows ended apart (validation 0.852 and 0.873).
-    ``index_select``'s adds in row order, so a fit is the same to the bit.
+    ``index_select``'s adds them in a fixed order, so a fit is the same to the bit.
 
     Examples
     --------
