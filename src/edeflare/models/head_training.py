@@ -69,6 +69,7 @@ __all__ = [
     "choose_threshold",
     "collect_features",
     "collect_sets",
+    "context_at",
     "context_columns",
     "fit_context_head",
     "fit_head",
