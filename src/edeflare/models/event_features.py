@@ -155,12 +155,16 @@ def relative_features(
     >>> np.round(np.exp([out["rel_pixel"][0], out["rel_8"][0]]), 6).tolist()
     [4.0, 4.0]
     """
-    out: dict[str, np.ndarray] = {}
     for name in names:
         if name not in RELATIVE_FEATURES:
             raise ParameterError(f"{name!r} is not a rate-relative feature")
-        # only the columns this feature reads: a window's every column is millions of rows
-        a, b = (np.expm1(np.asarray(columns[k], np.float64)) for k in RELATIVE_FEATURES[name])
+    # each column read, once (rate_8 and rate_window serve three features each); not the
+    # others: a window's every column is millions of rows
+    read = {k for name in names for k in RELATIVE_FEATURES[name]}
+    counts = {k: np.expm1(np.asarray(columns[k], np.float64)) for k in read}
+    out: dict[str, np.ndarray] = {}
+    for name in names:
+        a, b = (counts[k] for k in RELATIVE_FEATURES[name])
         if name == "rel_support":  # the event and its 5x5 square against 25 pixels' share
             out[name] = np.log((1.0 + a) / np.maximum(25.0 * b, 1e-9))
         elif name == "rel_since":  # the gap in ms x the pixel's events / the window in ms
