@@ -18,6 +18,7 @@ from edeflare.io.dsec import write_dsec_groups
 from edeflare.models import create_model
 from edeflare.models.event_features import (
     FEATURES,
+    LIGHT_FREE_FEATURES,
     NO_LIGHT_RADII,
     RELATIVE_FEATURES,
     relative_features,
@@ -133,6 +134,30 @@ def test_rate_relative_features_follow_from_the_stored_absolute_columns(rng):
         np.testing.assert_allclose(values, table[:, NAMES.index(name)], rtol=1e-4, atol=1e-5)
     with pytest.raises(ParameterError, match="'rate_8' is not a rate-relative feature"):
         relative_features(stored, ["rate_8"])
+
+
+def test_light_free_features_are_the_absolute_ones_without_a_light_and_zero_with_one(rng):
+    # a 16x16 block at 1 event per pixel and ms is a light (window_lights' example); the
+    # same events a tenth as fast are not, and there each free_* is its absolute feature
+    yy, xx = np.mgrid[16:32, 40:56]
+    names = [*LIGHT_FREE_FEATURES, *LIGHT_FREE_FEATURES.values(), "light_free"]
+
+    def table(per_pixel: int) -> np.ndarray:
+        n = per_pixel * xx.size
+        ev = make_events(np.arange(n) * 20_000 // n, np.tile(xx.ravel(), per_pixel),
+                         np.tile(yy.ravel(), per_pixel), np.ones(n))  # fmt: skip
+        return window_features(WindowContext(ev, (96, 64), 20_000), np.zeros(n), names)
+
+    k = len(LIGHT_FREE_FEATURES)
+    lit, dim = table(20), table(2)
+    assert lit[:, -1].max() == 0.0 and dim[:, -1].min() == 1.0
+    assert not lit[:, :k].any()
+    assert lit[:, k : 2 * k].min() > 0.0  # the absolute rates themselves are there
+    np.testing.assert_array_equal(dim[:, :k], dim[:, k : 2 * k])
+    assert dim[0, list(LIGHT_FREE_FEATURES).index("free_rate_pixel")] == pytest.approx(
+        math.log1p(2)
+    )
+    assert set(LIGHT_FREE_FEATURES.values()) <= set(FEATURES)
 
 
 def test_a_flickers_bursts_stand_out_in_sync_and_steady_events_do_not():

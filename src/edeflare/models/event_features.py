@@ -39,6 +39,7 @@ from ..rules.context import WindowContext
 __all__ = [
     "DEFAULT_FEATURES",
     "FEATURES",
+    "LIGHT_FREE_FEATURES",
     "RELATIVE_FEATURES",
     "check_feature_names",
     "relative_features",
@@ -83,6 +84,13 @@ FEATURES: dict[str, str] = {
     "square against its cell's density",
     "rel_since": "log(1 + ms since its pixel's previous event x its pixel's events / window "
     "in ms): the gap over the pixel's mean gap",
+    "free_support": "support in a window without a light; 0 where a light is found",
+    "free_rate_pixel": "rate_pixel in a window without a light; 0 where a light is found",
+    "free_rate_8": "rate_8 in a window without a light; 0 where a light is found",
+    "free_rate_32": "rate_32 in a window without a light; 0 where a light is found",
+    "free_rate_128": "rate_128 in a window without a light; 0 where a light is found",
+    "free_rate_window": "rate_window in a window without a light; 0 where a light is found",
+    "free_since_pixel": "since_pixel in a window without a light; 0 where a light is found",
 }
 """The per-event features, in column order, with what each holds. The ``rate_*`` counts
 are scaled to a full window where the stream covers only part of it."""
@@ -99,13 +107,23 @@ RELATIVE_FEATURES: dict[str, tuple[str, ...]] = {
 (:func:`relative_features`). Thinning a window at random scales every count, and each
 absolute rate with it, by the same share; these ratios stay (in expectation)."""
 
+LIGHT_FREE_FEATURES: dict[str, str] = {
+    name: name.removeprefix("free_") for name in FEATURES if name.startswith("free_")
+}
+"""Each light-free feature and the absolute one it gates: its value in a window where the
+light test finds no light, 0 in one where it finds a light. Beside the rate-relative
+features, a head can read the absolute rates where no light's own rate sets the scale
+(a quiet window's sparse scattered light) and only the ratios where one does."""
+
 DEFAULT_FEATURES: tuple[str, ...] = tuple(
-    name for name in FEATURES if name not in ("since_same", "sync_64", *RELATIVE_FEATURES)
+    name
+    for name in FEATURES
+    if name not in ("since_same", "sync_64", *RELATIVE_FEATURES, *LIGHT_FREE_FEATURES)
 )
 """What ``train-head`` reads unless told otherwise: every feature but the two flicker
 features, which a head of ``learned``'s form trained with them used to keep 64 % of a real
 day street that has flicker in it (``experiments/context-head``), and the rate-relative
-ones (:data:`RELATIVE_FEATURES`)."""
+ones (:data:`RELATIVE_FEATURES`) and the light-free ones (:data:`LIGHT_FREE_FEATURES`)."""
 
 NO_LIGHT_RADII = 64.0
 """The distance, in radii, given to every event of a window without a light."""
@@ -306,7 +324,12 @@ def window_features(
     """
     names = tuple(FEATURES) if names is None else check_feature_names(names)
     relative = [n for n in names if n in RELATIVE_FEATURES]
-    need = set(names) | {k for n in relative for k in RELATIVE_FEATURES[n]}
+    gated = [n for n in names if n in LIGHT_FREE_FEATURES]
+    need = (
+        set(names)
+        | {k for n in relative for k in RELATIVE_FEATURES[n]}
+        | {LIGHT_FREE_FEATURES[n] for n in gated}
+    )
     ev = ctx.events
     n = ev.size
     if net_logit.shape != (n,):
@@ -395,6 +418,8 @@ def window_features(
     if "centre_distance" in need:
         cols["centre_distance"] = _centre_distance(width, height)[pixel]
     cols.update(relative_features(cols, relative, window_us))
+    for name in gated:  # one light test per window: all of its column, or none of it
+        cols[name] = np.zeros(n) if ctx.has_lights else cols[LIGHT_FREE_FEATURES[name]]
     # one feature per row while filling (contiguous writes), returned as (n, F)
     out = np.empty((len(names), n), np.float32)
     for k, name in enumerate(names):

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Run LF: learned's full command with R's form (experiments/relative-rates) and the seven
+# light-free features (run from the project root):
+#   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS > RUNS/lf.log 2>&1 &
+# TRAIN: edeflare simulate TRAIN --recipe eflare-train; FORWARD: --recipe eflare-forward
+set -euo pipefail
+train=$1 faery=$2 forward=$3 runs=$4
+features=net_logit,polarity,light_free,light_distance,halo,ghost,spike,far,crowded,field,\
+balance_pixel,balance_8,balance_32,centre_distance,rel_pixel,rel_8,rel_32,rel_128,\
+rel_support,rel_since,free_support,free_rate_pixel,free_rate_8,free_rate_32,free_rate_128,\
+free_rate_window,free_since_pixel
+edeflare train-head "$train" --weights night --out "$runs/LF" --hidden 64,32 --epochs 12 \
+    --context 8 --members 3 --no-progress --features "$features" --relative-context
+bash experiments/rate-thinning/score_arms.sh "$faery" "$runs" LF
+edeflare benchmark "$forward/test" --methods raw --model LF="$runs/LF/model.safetensors" \
+    --report "$runs/forward_LF.md"
