@@ -136,7 +136,7 @@ def test_rate_relative_features_follow_from_the_stored_absolute_columns(rng):
         relative_features(stored, ["rate_8"])
 
 
-def test_light_free_features_are_the_absolute_ones_without_a_light_and_zero_with_one(rng):
+def test_light_free_features_are_the_absolute_ones_without_a_light_and_zero_with_one():
     # a 16x16 block at 1 event per pixel and ms is a light (window_lights' example); the
     # same events a tenth as fast are not, and there each free_* is its absolute feature
     yy, xx = np.mgrid[16:32, 40:56]
