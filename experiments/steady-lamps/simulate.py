@@ -21,7 +21,17 @@ Two more (``--bright``: `steady-bright-640`, `steady-bright-1280`, the dark part
 have the dark parts' field with more of the scattered light surviving: 30-100 % times
 (2 r / d)^0.5. Set after the dark parts were measured.
 
-Run: python experiments/steady-lamps/simulate.py OUT [--dark | --bright]   (resumes; 2 workers)
+Two more (``--quiet``: `steady-quiet-640`, `steady-quiet-1280`, the same sizes) have the
+bright parts' lamps and survival over a field as quiet as they can make it: a still camera
+(pan 0-0.5 px/s, shake up to 0.05 px, no zoom), the scene's noise 0.005-0.05 and the
+sensing stage's background activity 0.01-0.1 events per pixel and second, and the ideal
+log sensor (thresholds 0.15-0.35, no leak) in place of DVS-Voltmeter, whose leak alone
+fires a still dark field at about 0.2 events per pixel and second once warm. Set after
+the bright parts were measured and after a probe of three simulated sequences; the night
+recording is no evidence for them.
+
+Run: python experiments/steady-lamps/simulate.py OUT [--dark | --bright | --quiet]
+(resumes; 2 workers)
 """
 
 from __future__ import annotations
@@ -96,11 +106,29 @@ BRIGHT_PARTS = {
     for name, recipe in DARK_PARTS.items()
 }  # fmt: skip
 
+_QUIET_SCENE = dataclasses.replace(
+    _DARK_SCENE, pan_px_per_s=(0.0, 0.5), shake_px=(0.0, 0.05), zoom_per_s=(0.0, 0.0),
+    noise_rate_hz=(0.005, 0.05),
+)  # fmt: skip
+_QUIET_SENSING = dataclasses.replace(_BRIGHT_SENSING, noise_rate=(0.01, 0.1))
+QUIET_PARTS = {
+    name.replace("dark", "quiet"): dataclasses.replace(
+        recipe, name=recipe.name.replace("dark", "quiet"), seed=recipe.seed + 4,
+        scene=_QUIET_SCENE if recipe.sensor_size == (640, 480) else _hd(_QUIET_SCENE),
+        config=dataclasses.replace(
+            recipe.config, sensing=_QUIET_SENSING,
+            script=dataclasses.replace(recipe.config.script, sensor_model="ideal"),
+        ),
+    )
+    for name, recipe in DARK_PARTS.items()
+}  # fmt: skip
+
 
 def main() -> None:
     out = Path(sys.argv[1])
     variant = sys.argv[2] if len(sys.argv) > 2 else ""
-    parts = {"": PARTS, "--dark": DARK_PARTS, "--bright": BRIGHT_PARTS}[variant]
+    parts = {"": PARTS, "--dark": DARK_PARTS, "--bright": BRIGHT_PARTS, "--quiet": QUIET_PARTS}
+    parts = parts[variant]
     for name, recipe in parts.items():
         generate_dataset(recipe, out / name, workers=2, progress=False)
         print(f"{name}: done", flush=True)
