@@ -3,14 +3,22 @@
 # light-free features (run from the project root):
 #   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS > RUNS/lf.log 2>&1 &
 # TRAIN: edeflare simulate TRAIN --recipe eflare-train; FORWARD: --recipe eflare-forward
+# With a fifth argument "absolute": run LFA, the same without --relative-context (its
+# context reads absolute counts, as learned's does):
+#   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS absolute > RUNS/lfa.log 2>&1 &
 set -euo pipefail
-train=$1 faery=$2 forward=$3 runs=$4
+train=$1 faery=$2 forward=$3 runs=$4 form=${5:-relative}
+case $form in
+    relative) arm=LF context=(--relative-context) ;;
+    absolute) arm=LFA context=() ;;
+    *) echo "form must be relative or absolute, got $form" >&2; exit 2 ;;
+esac
 features=net_logit,polarity,light_free,light_distance,halo,ghost,spike,far,crowded,field,\
 balance_pixel,balance_8,balance_32,centre_distance,rel_pixel,rel_8,rel_32,rel_128,\
 rel_support,rel_since,free_support,free_rate_pixel,free_rate_8,free_rate_32,free_rate_128,\
 free_rate_window,free_since_pixel
-edeflare train-head "$train" --weights night --out "$runs/LF" --hidden 64,32 --epochs 12 \
-    --context 8 --members 3 --no-progress --features "$features" --relative-context
-bash experiments/rate-thinning/score_arms.sh "$faery" "$runs" LF
-edeflare benchmark "$forward/test" --methods raw --model LF="$runs/LF/model.safetensors" \
-    --report "$runs/forward_LF.md"
+edeflare train-head "$train" --weights night --out "$runs/$arm" --hidden 64,32 --epochs 12 \
+    --context 8 --members 3 --no-progress --features "$features" "${context[@]}"
+bash experiments/rate-thinning/score_arms.sh "$faery" "$runs" "$arm"
+edeflare benchmark "$forward/test" --methods raw --model "$arm=$runs/$arm/model.safetensors" \
+    --report "$runs/forward_$arm.md"
