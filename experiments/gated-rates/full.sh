@@ -6,17 +6,26 @@
 # With a fifth argument "absolute": run LFA, the same without --relative-context (its
 # context reads absolute counts, as learned's does):
 #   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS absolute > RUNS/lfa.log 2>&1 &
+# With "every": run LE, LF's relative context with learned's seven absolute features read in
+# every window in place of their light-free twins:
+#   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS every > RUNS/le.log 2>&1 &
 set -euo pipefail
 train=$1 faery=$2 forward=$3 runs=$4 form=${5:-relative}
 case $form in
     relative) arm=LF context=(--relative-context) ;;
     absolute) arm=LFA context=() ;;
-    *) echo "form must be relative or absolute, got $form" >&2; exit 2 ;;
+    every) arm=LE context=(--relative-context) ;;
+    *) echo "form must be relative, absolute or every, got $form" >&2; exit 2 ;;
 esac
 features=net_logit,polarity,light_free,light_distance,halo,ghost,spike,far,crowded,field,\
 balance_pixel,balance_8,balance_32,centre_distance,rel_pixel,rel_8,rel_32,rel_128,\
-rel_support,rel_since,free_support,free_rate_pixel,free_rate_8,free_rate_32,free_rate_128,\
+rel_support,rel_since
+if [ "$form" = every ]; then
+    features=$features,support,rate_pixel,rate_8,rate_32,rate_128,rate_window,since_pixel
+else
+    features=$features,free_support,free_rate_pixel,free_rate_8,free_rate_32,free_rate_128,\
 free_rate_window,free_since_pixel
+fi
 edeflare train-head "$train" --weights night --out "$runs/$arm" --hidden 64,32 --epochs 12 \
     --context 8 --members 3 --no-progress --features "$features" "${context[@]}"
 bash experiments/rate-thinning/score_arms.sh "$faery" "$runs" "$arm"
