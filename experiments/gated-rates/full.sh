@@ -9,13 +9,16 @@
 # With "every": run LE, LF's relative context with learned's seven absolute features read in
 # every window in place of their light-free twins:
 #   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS every > RUNS/le.log 2>&1 &
+# With "window": run LW, LF with rate_window read in every window:
+#   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS window > RUNS/lw.log 2>&1 &
 set -euo pipefail
 train=$1 faery=$2 forward=$3 runs=$4 form=${5:-relative}
 case $form in
     relative) arm=LF context=(--relative-context) ;;
     absolute) arm=LFA context=() ;;
     every) arm=LE context=(--relative-context) ;;
-    *) echo "form must be relative, absolute or every, got $form" >&2; exit 2 ;;
+    window) arm=LW context=(--relative-context) ;;
+    *) echo "form must be relative, absolute, every or window, got $form" >&2; exit 2 ;;
 esac
 features=net_logit,polarity,light_free,light_distance,halo,ghost,spike,far,crowded,field,\
 balance_pixel,balance_8,balance_32,centre_distance,rel_pixel,rel_8,rel_32,rel_128,\
@@ -25,6 +28,9 @@ if [ "$form" = every ]; then
 else
     features=$features,free_support,free_rate_pixel,free_rate_8,free_rate_32,free_rate_128,\
 free_rate_window,free_since_pixel
+fi
+if [ "$form" = window ]; then
+    features=$features,rate_window
 fi
 edeflare train-head "$train" --weights night --out "$runs/$arm" --hidden 64,32 --epochs 12 \
     --context 8 --members 3 --no-progress --features "$features" "${context[@]}"
