@@ -13,25 +13,20 @@
 #   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS window > RUNS/lw.log 2>&1 &
 set -euo pipefail
 train=$1 faery=$2 forward=$3 runs=$4 form=${5:-relative}
-case $form in
-    relative) arm=LF context=(--relative-context) ;;
-    absolute) arm=LFA context=() ;;
-    every) arm=LE context=(--relative-context) ;;
-    window) arm=LW context=(--relative-context) ;;
-    *) echo "form must be relative, absolute, every or window, got $form" >&2; exit 2 ;;
-esac
-features=net_logit,polarity,light_free,light_distance,halo,ghost,spike,far,crowded,field,\
+ratios=net_logit,polarity,light_free,light_distance,halo,ghost,spike,far,crowded,field,\
 balance_pixel,balance_8,balance_32,centre_distance,rel_pixel,rel_8,rel_32,rel_128,\
 rel_support,rel_since
-if [ "$form" = every ]; then
-    features=$features,support,rate_pixel,rate_8,rate_32,rate_128,rate_window,since_pixel
-else
-    features=$features,free_support,free_rate_pixel,free_rate_8,free_rate_32,free_rate_128,\
-free_rate_window,free_since_pixel
-fi
-if [ "$form" = window ]; then
-    features=$features,rate_window
-fi
+gated=free_support,free_rate_pixel,free_rate_8,free_rate_32,free_rate_128,free_rate_window,\
+free_since_pixel
+ungated=support,rate_pixel,rate_8,rate_32,rate_128,rate_window,since_pixel
+case $form in
+    relative) arm=LF context=(--relative-context) rates=$gated ;;
+    absolute) arm=LFA context=() rates=$gated ;;
+    every) arm=LE context=(--relative-context) rates=$ungated ;;
+    window) arm=LW context=(--relative-context) rates=$gated,rate_window ;;
+    *) echo "form must be relative, absolute, every or window, got $form" >&2; exit 2 ;;
+esac
+features=$ratios,$rates
 edeflare train-head "$train" --weights night --out "$runs/$arm" --hidden 64,32 --epochs 12 \
     --context 8 --members 3 --no-progress --features "$features" "${context[@]}"
 bash experiments/rate-thinning/score_arms.sh "$faery" "$runs" "$arm"
