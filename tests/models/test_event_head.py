@@ -361,6 +361,22 @@ def test_labels_match_one_to_one_within_the_tolerance():
     assert keep_labels(inp, inp[[1, 3]], 0).tolist() == [False, True, False, True]  # a subset
 
 
+def test_labels_of_time_sorted_streams_match_those_of_any_order(rng):
+    # time-sorted streams are grouped by a counting sort, others sorted by pixel and time:
+    # one matching either way (distinct times, so no tie decides it)
+    n, m = 6_000, 4_000
+    t_in = np.sort(rng.choice(10**6, n, replace=False))
+    inp = make_events(t_in, rng.integers(0, 9, n), rng.integers(0, 7, n), rng.integers(0, 2, n))
+    t_gt = np.sort(rng.choice(10**6, m, replace=False) + 0.5).astype(np.int64)
+    gt = make_events(t_gt, rng.integers(0, 9, m), rng.integers(0, 7, m), rng.integers(0, 2, m))
+    sorted_labels = keep_labels(inp, gt, 20_000)
+    shuffle_in, shuffle_gt = rng.permutation(n), rng.permutation(m)
+    any_order = keep_labels(inp[shuffle_in], gt[shuffle_gt], 20_000)
+    assert any_order.tolist() == sorted_labels[shuffle_in].tolist()
+    assert 0.3 < sorted_labels.mean() < 0.9  # both answers occur
+    assert keep_labels(inp, gt[:0]).tolist() == [False] * n and keep_labels(inp[:0], gt).size == 0
+
+
 def test_the_threshold_maximises_the_mean_of_both_datasets_scores():
     # dataset a: keep-probability 0.9 scene, 0.2 flare; b: 0.6 scene, 0.45 flare
     p = np.array([0.9, 0.2, 0.6, 0.45])
@@ -432,6 +448,40 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
     fewer = dataclasses.replace(config, features=("net_logit", "rate_8"))
     train_head(parts, base, tmp_path / "run", fewer, progress=False)
     assert len(list((tmp_path / "run").glob("features-*.npz"))) == 4
+
+
+@pytest.mark.slow  # two processes started: about 10 s
+def test_rows_drawn_by_worker_processes_are_the_rows_one_process_draws(tmp_path, rng):
+    import pickle
+
+    from edeflare.models.head_training import NetworkLogits, collect_features
+
+    parts, base = _two_parts_and_a_base(tmp_path, rng)
+    model = create_model("mask.lite")  # untrained, its logits all 0: perturbed
+    torch.manual_seed(0)
+    with torch.no_grad():
+        for param in model.parameters():
+            param.add_(0.1 * torch.randn_like(param))
+    save_model(base, model, ModelCard(preset="mask.lite"))
+    files = [f for part in parts for f in sorted((part / "train").glob("*.h5"))]
+    # thinned windows and a context: every draw of the generator and the cells too
+    config = HeadTrainingConfig(
+        features=("net_logit", "rate_8", "support", "since_pixel"),
+        per_window=200,
+        thin=0.3,
+        context=4,
+    )
+    logits = NetworkLogits(base)
+    assert pickle.loads(pickle.dumps(logits)).weights == base  # its path, not the network
+    one = collect_features(files, logits, 20_000, config, balanced=True, progress=False)
+    two = collect_features(files, logits, 20_000, config, balanced=True, progress=False, workers=2)
+    assert sorted(one) == sorted(two) and np.unique(one["source"]).tolist() == [0, 1, 2, 3]
+    assert one["x"][:, 0].std() > 0  # the network ran: its logits differ between events
+    assert sum(k.startswith("cells_") for k in one) == one["sizes"].shape[0] > len(files)
+    for key in one:
+        np.testing.assert_array_equal(one[key], two[key], err_msg=key)
+    with pytest.raises(ParameterError, match="workers must be a positive integer, got 0"):
+        collect_features(files, logits, 20_000, config, balanced=True, workers=0)
 
 
 def test_the_scene_alone_is_learned_from_with_every_event_kept(tmp_path, rng):

@@ -133,6 +133,12 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="learn the keep probabilities of a trained head over the same network (e.g. an "
         "ensemble's RUN/model.safetensors) instead of the labels: one head that decides like it",
     )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="processes drawing the training rows from the data (the same rows at any number)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -144,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     from ..models.head_training import HeadTrainingConfig, train_head
     from ..models.infer import resolve_weights
 
-    for name in ("per_window", "epochs", "members"):
+    for name in ("per_window", "epochs", "members", "workers"):
         if getattr(args, name) < 1:
             raise ParameterError(f"--{name.replace('_', '-')} must be at least 1")
     if args.context < 0:
@@ -187,6 +193,7 @@ def run(args: argparse.Namespace) -> int:
         command=command,
         teacher=None if args.teacher is None else resolve_weights(args.teacher),
         progress=not args.no_progress,
+        workers=args.workers,
     )
     best = max(summary["threshold_table"], key=lambda r: r["score"])
     print(

@@ -65,6 +65,7 @@ from .event_head import EventHead, EventHeadEnsemble, event_cells, head_logits
 
 __all__ = [
     "HeadTrainingConfig",
+    "NetworkLogits",
     "check_thin",
     "choose_threshold",
     "collect_features",
@@ -104,22 +105,61 @@ def _match(key_i, t_i, key_g, t_g, tol):  # pragma: no cover - compiled
     return out
 
 
+@numba.njit(cache=True)
+def _by_key(key, n_keys):  # pragma: no cover - compiled
+    """A stable counting sort: the indices grouped by ``key`` (in ``[0, n_keys)``), each
+    group in the order given, and where each group starts (``n_keys + 1``)."""
+    start = np.zeros(n_keys + 1, np.int64)
+    for k in key:
+        start[k + 1] += 1
+    for k in range(n_keys):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    order = np.empty(key.size, np.int64)
+    for i in range(key.size):
+        order[fill[key[i]]] = i
+        fill[key[i]] += 1
+    return order, start
+
+
+@numba.njit(cache=True)
+def _match_time_sorted(key_i, t_i, key_g, t_g, n_keys, tol):  # pragma: no cover - compiled
+    """:func:`_match` for streams in time order: each pixel and polarity's events in their
+    time order by a counting sort (linear, where sorting by key and time is not)."""
+    order_i, start_i = _by_key(key_i, n_keys)
+    order_g, start_g = _by_key(key_g, n_keys)
+    out = np.zeros(key_i.size, np.bool_)
+    for k in range(n_keys):
+        j, stop = start_g[k], start_g[k + 1]
+        for a in range(start_i[k], start_i[k + 1]):
+            i = order_i[a]
+            while j < stop and t_g[order_g[j]] < t_i[i] - tol:
+                j += 1
+            if j < stop and t_g[order_g[j]] <= t_i[i] + tol:
+                out[i] = True
+                j += 1
+    return out
+
+
 def keep_labels(inp: np.ndarray, gt: np.ndarray, tolerance_us: int = 1_000) -> np.ndarray:
     """Which input events the ground truth holds: one gt event of the same pixel and
     polarity within ``tolerance_us`` each, matched in time order (True: scene, keep)."""
+    if not inp.size or not gt.size:
+        return np.zeros(inp.size, bool)
+    width = int(max(inp["x"].max(), gt["x"].max())) + 1
 
     def keys(ev: np.ndarray) -> np.ndarray:
-        return (ev["y"].astype(np.int64) * 65536 + ev["x"]) * 2 + (ev["p"] != 0)
+        return (ev["y"].astype(np.int64) * width + ev["x"]) * 2 + (ev["p"] != 0)
 
     ki, kg = keys(inp), keys(gt)
-    oi = np.lexsort((inp["t"], ki))
-    og = np.lexsort((gt["t"], kg))
-    matched = _match(
-        ki[oi], inp["t"].astype(np.int64)[oi], kg[og], gt["t"].astype(np.int64)[og],
-        int(tolerance_us),
-    )  # fmt: skip
+    ti, tg = inp["t"].astype(np.int64), gt["t"].astype(np.int64)
+    if (np.diff(ti) >= 0).all() and (np.diff(tg) >= 0).all():  # as every stream is stored
+        n_keys = int(max(ki.max(), kg.max())) + 1
+        return _match_time_sorted(ki, ti, kg, tg, n_keys, int(tolerance_us))
+    oi = np.lexsort((ti, ki))
+    og = np.lexsort((tg, kg))
     out = np.empty(inp.size, bool)
-    out[oi] = matched
+    out[oi] = _match(ki[oi], ti[oi], kg[og], tg[og], int(tolerance_us))
     return out
 
 
@@ -236,9 +276,221 @@ def _windows(events: np.ndarray, start: int, end: int, window_us: int):
             yield s, slice(int(lo), int(hi))
 
 
+class NetworkLogits:
+    """A mask model's network: the per-event keep logits of a batch of windows, its rules
+    off and any head of its own left out (what a keep head is trained over).
+
+    Loaded where it is first called and pickled as its weights' path alone, so that each
+    worker of :func:`collect_features` loads its own copy.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from edeflare.models import create_model
+    >>> from edeflare.models.weights import ModelCard, save_model
+    >>> from edeflare.events import make_events
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "m.safetensors"
+    >>> save_model(p, create_model("mask.lite"), ModelCard(preset="mask.lite"))
+    >>> logits = NetworkLogits(p)
+    >>> [v.tolist() for v in logits([(0, make_events([10], [1], [1], [1]))], (8, 8))]
+    [[0.0]]
+    >>> logits.window_us
+    20000
+    """
+
+    def __init__(self, weights: str | os.PathLike[str]) -> None:
+        self.weights = Path(weights)
+        self._deflarer: Any = None
+
+    @property
+    def deflarer(self) -> Any:
+        """The :class:`~edeflare.models.infer.ModelDeflarer` (torch, rules off, no head)."""
+        if self._deflarer is None:
+            from .infer import ModelDeflarer
+            from .weights import read_card
+
+            card = read_card(self.weights)
+            rules_off = {k: 0 for k in card.rules}
+            deflarer = ModelDeflarer(self.weights, runtime="torch", batch_windows=1, **rules_off)
+            deflarer.head_params = None
+            self._deflarer = deflarer
+        return self._deflarer
+
+    @property
+    def window_us(self) -> int:
+        return int(self.deflarer.window_us)
+
+    def __call__(
+        self,
+        batch: list[tuple[int, np.ndarray]],
+        sensor_size: SensorSize,
+        *,
+        cells: list[np.ndarray] | None = None,
+    ) -> list[np.ndarray]:
+        return self.deflarer.window_logits(batch, sensor_size, cells=cells)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"weights": self.weights}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["weights"])
+
+
+_ROW_KEYS = ("x", "y", "light", "source")
+
+
+def _file_rows(
+    path: Path,
+    k: int,
+    rng: np.random.Generator,
+    window_logits: Callable[..., list[np.ndarray]] | None,
+    window_us: int,
+    config: HeadTrainingConfig,
+    balanced: bool,
+    cell_scale: int,
+) -> dict[str, list[Any]]:
+    """The rows drawn from one sequence (file ``k`` of the run), ``rng`` advanced past them.
+
+    ``window_logits`` None: only the draws (which events of which windows; they hang on the
+    labels and the windows' sizes, never on the features), so the generator's state
+    before each file is known without its features: :func:`collect_features`' workers start
+    each file from that state and draw the rows one process alone would.
+    """
+    out: dict[str, list[Any]] = {key: [] for key in (*_ROW_KEYS, "window", "cell", "cells")}
+    inp, gt, size, start, end = read_sequence(path)
+    labels = keep_labels(inp, gt, config.tolerance_us)
+    light = _component(path, "light")
+    of_light = np.zeros(inp.size, bool)
+    if light is not None:  # the light source itself is scene, not flare
+        of_light = keep_labels(inp, light, config.tolerance_us)
+        labels |= of_light
+    streams = [(inp, labels, of_light, k)]
+    scene = _component(path, "background") if config.light_free_windows else None
+    if scene is not None:  # the scene alone, as a recording without a light sees it
+        streams.append((scene, np.ones(scene.size, bool), np.zeros(scene.size, bool), -1 - k))
+    if config.flare_free_windows:  # the clean lens's recording of the same scene
+        streams.append((gt, np.ones(gt.size, bool), np.zeros(gt.size, bool),
+                        FLARE_FREE_SOURCE - k))  # fmt: skip
+    for events, truth, lit, source in streams:
+        for s, part in _windows(events, start, end, window_us):
+            keep = thinned(rng, part.stop - part.start, config.thin) if balanced else None
+            if keep is not None:  # the window as a sparser sensor would see it
+                part = np.arange(part.start, part.stop)[keep]
+                if not part.size:
+                    continue
+            y = truth[part]
+            if balanced:
+                take = np.concatenate(
+                    [_draw(rng, np.flatnonzero(y == c), config.per_window) for c in (0, 1)]
+                )
+            else:
+                take = _draw(rng, np.arange(y.size), config.val_per_window)
+            if window_logits is None:
+                continue
+            ev = events[part]
+            window_cells: list[np.ndarray] | None = None
+            if config.context:  # the cells the context reads, with the logits
+                window_cells = []
+                logit = window_logits([(s, ev)], size, cells=window_cells)[0]
+            else:
+                logit = window_logits([(s, ev)], size)[0]
+            ctx = WindowContext(ev, size, covered_us(ev, s, window_us))
+            f = window_features(ctx, logit, config.features, window_us=window_us)
+            out["x"].append(f[take])
+            out["y"].append(y[take])
+            out["light"].append(lit[part][take])
+            out["source"].append(np.full(take.size, source, np.int32))
+            if window_cells is not None:  # the window's index within this file
+                out["window"].append(np.full(take.size, len(out["cells"]), np.int32))
+                cells_wide = window_cells[0].shape[2]
+                out["cell"].append(event_cells(ev[take], cell_scale, cells_wide).astype(np.int32))
+                out["cells"].append((window_cells[0].astype(np.float16), size))
+    return out
+
+
+def _rows_in_worker(
+    path: Path,
+    k: int,
+    state: dict[str, Any],
+    window_logits: Callable[..., list[np.ndarray]],
+    window_us: int,
+    config: HeadTrainingConfig,
+    balanced: bool,
+    cell_scale: int,
+) -> dict[str, list[Any]]:
+    """:func:`_file_rows` in a pool worker, its generator started from ``state``."""
+    rng = np.random.default_rng()
+    rng.bit_generator.state = state
+    return _file_rows(path, k, rng, window_logits, window_us, config, balanced, cell_scale)
+
+
+def _init_row_worker(parent: int, threads: int) -> None:
+    from .._parallel import init_worker
+
+    init_worker(parent, threads)
+    torch.set_num_threads(threads)
+
+
+def _rows_in_pool(
+    files: Sequence[Path],
+    rng: np.random.Generator,
+    window_logits: Callable[..., list[np.ndarray]],
+    window_us: int,
+    config: HeadTrainingConfig,
+    balanced: bool,
+    cell_scale: int,
+    workers: int,
+    bar: Any,
+) -> Iterator[dict[str, list[Any]]]:
+    """Each file's rows, in order, drawn by ``workers`` processes: this one draws ahead
+    without features (:func:`_file_rows`) to hand each file its generator's state."""
+    from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+    from multiprocessing import get_context
+
+    from .._interrupt import check_interrupt, sigint_blocked
+    from .._parallel import stop_workers
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    done_rows: dict[int, dict[str, list[Any]]] = {}
+    with ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=get_context("spawn"),
+        initializer=_init_row_worker,
+        initargs=(os.getpid(), threads),
+    ) as pool:
+        pending: dict[Future[Any], int] = {}
+        queued, handed = 0, 0
+        try:
+            while handed < len(files):
+                while queued < len(files) and len(pending) < 2 * workers:
+                    state = rng.bit_generator.state
+                    _file_rows(files[queued], queued, rng, None, window_us, config,
+                               balanced, cell_scale)  # fmt: skip
+                    with sigint_blocked():  # a worker started here starts deaf to Ctrl-C
+                        task = (files[queued], queued, state, window_logits, window_us,
+                                config, balanced, cell_scale)  # fmt: skip
+                        pending[pool.submit(_rows_in_worker, *task)] = queued
+                    queued += 1
+                done, _ = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+                check_interrupt()
+                for fut in done:
+                    done_rows[pending.pop(fut)] = fut.result()
+                    bar.update(1)
+                while handed in done_rows:  # in the files' order
+                    yield done_rows.pop(handed)
+                    handed += 1
+        except Exception:
+            for fut in pending:
+                fut.cancel()
+            raise
+        except BaseException:  # Ctrl-C: the files in flight stop too
+            stop_workers(pool)
+            raise
+
+
 def collect_features(
     files: Sequence[Path],
-    window_logits: Callable[[list[tuple[int, np.ndarray]], SensorSize], list[np.ndarray]],
+    window_logits: Callable[..., list[np.ndarray]],
     window_us: int,
     config: HeadTrainingConfig,
     *,
@@ -246,79 +498,52 @@ def collect_features(
     progress: bool = True,
     desc: str = "features",
     cell_scale: int = 8,
+    workers: int = 1,
 ) -> dict[str, np.ndarray]:
     """Features, labels and each row's file index of the events drawn from ``files``
     (``x``, ``y``, ``source``), and which rows are the light's own events (``light``).
 
     ``window_logits`` is the base network's per-event keep logits of a batch of
-    windows (:meth:`~edeflare.models.infer.ModelDeflarer.window_logits`, no rules).
+    windows (:class:`NetworkLogits`, or
+    :meth:`~edeflare.models.infer.ModelDeflarer.window_logits` with no rules).
     With a context (``config.context``), also each window's cells (``cells_NNNNNN``: the
     network's inputs and keep logits), its sensor (``sizes``) and each row's window and
     cell of ``cell_scale`` pixels (``window``, ``cell``).
+
+    ``workers`` > 1 draws the files in that many processes (``window_logits`` must then
+    pickle, as :class:`NetworkLogits` does): the same rows as one process, in the same
+    order.
     """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ParameterError(f"workers must be a positive integer, got {workers!r}")
     rng = np.random.default_rng(config.seed)
-    xs, ys, ls, fs = [], [], [], []
-    # with a context: each window's cells (float16) and each row's window and cell
+    rows: dict[str, list[np.ndarray]] = {key: [] for key in (*_ROW_KEYS, "window", "cell")}
     cells: list[np.ndarray] = []
-    wins, cell_of, sizes = [], [], []
-    for k, path in enumerate(progress_bar(files, enabled=progress, desc=desc, unit="file")):
-        inp, gt, size, start, end = read_sequence(path)
-        labels = keep_labels(inp, gt, config.tolerance_us)
-        light = _component(path, "light")
-        of_light = np.zeros(inp.size, bool)
-        if light is not None:  # the light source itself is scene, not flare
-            of_light = keep_labels(inp, light, config.tolerance_us)
-            labels |= of_light
-        streams = [(inp, labels, of_light, k)]
-        scene = _component(path, "background") if config.light_free_windows else None
-        if scene is not None:  # the scene alone, as a recording without a light sees it
-            streams.append((scene, np.ones(scene.size, bool), np.zeros(scene.size, bool), -1 - k))
-        if config.flare_free_windows:  # the clean lens's recording of the same scene
-            streams.append((gt, np.ones(gt.size, bool), np.zeros(gt.size, bool),
-                            FLARE_FREE_SOURCE - k))  # fmt: skip
-        for events, truth, lit, source in streams:
-            for s, part in _windows(events, start, end, window_us):
-                keep = thinned(rng, part.stop - part.start, config.thin) if balanced else None
-                if keep is not None:  # the window as a sparser sensor would see it
-                    part = np.arange(part.start, part.stop)[keep]
-                    if not part.size:
-                        continue
-                ev = events[part]
-                window_cells: list[np.ndarray] | None = None
-                if config.context:  # the cells the context reads, with the logits
-                    window_cells = []
-                    logit = window_logits([(s, ev)], size, cells=window_cells)[0]
-                else:
-                    logit = window_logits([(s, ev)], size)[0]
-                ctx = WindowContext(ev, size, covered_us(ev, s, window_us))
-                f = window_features(ctx, logit, config.features, window_us=window_us)
-                y = truth[part]
-                if balanced:
-                    take = np.concatenate(
-                        [_draw(rng, np.flatnonzero(y == c), config.per_window) for c in (0, 1)]
-                    )
-                else:
-                    take = _draw(rng, np.arange(ev.size), config.val_per_window)
-                xs.append(f[take])
-                ys.append(y[take])
-                ls.append(lit[part][take])
-                fs.append(np.full(take.size, source, np.int32))
-                if window_cells is not None:
-                    wins.append(np.full(take.size, len(cells), np.int32))
-                    cells_wide = window_cells[0].shape[2]
-                    cell_of.append(event_cells(ev[take], cell_scale, cells_wide).astype(np.int32))
-                    cells.append(window_cells[0].astype(np.float16))
-                    sizes.append(size)
-    if not xs:
+    sizes: list[SensorSize] = []
+    bar = progress_bar(total=len(files), enabled=progress, desc=desc, unit="file")
+    with bar:
+        if workers == 1 or len(files) < 2:
+            per_file: Iterable[dict[str, list[Any]]] = (
+                _file_rows(f, k, rng, window_logits, window_us, config, balanced, cell_scale)
+                for k, f in enumerate(files)
+            )
+        else:
+            per_file = _rows_in_pool(files, rng, window_logits, window_us, config, balanced,
+                                     cell_scale, min(workers, len(files)), bar)  # fmt: skip
+        for got in per_file:
+            for key in _ROW_KEYS:
+                rows[key] += got[key]
+            rows["window"] += [w + len(cells) for w in got["window"]]
+            rows["cell"] += got["cell"]
+            cells += [c for c, _ in got["cells"]]
+            sizes += [size for _, size in got["cells"]]
+            if workers == 1 or len(files) < 2:
+                bar.update(1)
+    if not rows["x"]:
         raise EdeflareError("no events to learn from in " + ", ".join(map(str, files[:3])))
-    out = {
-        "x": np.concatenate(xs),
-        "y": np.concatenate(ys),
-        "light": np.concatenate(ls),
-        "source": np.concatenate(fs),
-    }
+    out = {key: np.concatenate(rows[key]) for key in _ROW_KEYS}
     if config.context:
-        out.update(window=np.concatenate(wins), cell=np.concatenate(cell_of))
+        out.update(window=np.concatenate(rows["window"]), cell=np.concatenate(rows["cell"]))
         out["sizes"] = np.asarray(sizes, np.int32).reshape(-1, 2)
         out.update({f"cells_{i:06d}": c for i, c in enumerate(cells)})
     return out
@@ -751,18 +976,15 @@ def collect_sets(
     config: HeadTrainingConfig,
     *,
     progress: bool = True,
+    workers: int = 1,
 ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, list[str]], torch.nn.Module]:
     """The rows of the dataset ``folders``' training (balanced) and test splits over the
     network of ``base`` (its own keep logits: its rules off, any head of its own left
     out), cached in ``run``; the files of each split; and the network (a torch module,
-    ``base``'s head still on it where it has one)."""
-    from .infer import ModelDeflarer
-    from .weights import read_card
-
-    card = read_card(base)
-    deflarer = ModelDeflarer(base, runtime="torch", batch_windows=1, **{k: 0 for k in card.rules})
-    deflarer.head_params = None
-    net = deflarer.model
+    ``base``'s head still on it where it has one). ``workers``: processes drawing the rows
+    (the same rows at any number)."""
+    logits = NetworkLogits(base)
+    net = logits.deflarer.model
     files_of: dict[str, list[str]] = {}
     sets = {}
     for split, balanced in (("train", True), ("test", False)):
@@ -774,8 +996,8 @@ def collect_sets(
         sets[split] = _cached(
             run / f"features-{split}-{key}.npz",
             lambda files=files, balanced=balanced, split=split: collect_features(
-                files, deflarer.window_logits, deflarer.window_us, config,
-                balanced=balanced, progress=progress, desc=split, cell_scale=net.scale,
+                files, logits, logits.window_us, config, balanced=balanced,
+                progress=progress, desc=split, cell_scale=net.scale, workers=workers,
             ),
         )  # fmt: skip
     return sets, files_of, net
@@ -790,6 +1012,7 @@ def train_head(
     command: str = "",
     teacher: str | os.PathLike[str] | None = None,
     progress: bool = True,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """Train a keep head on ``data``'s training splits over the ``base_weights`` mask
     network; write ``run_dir/model.safetensors`` (network, head, card with the threshold
@@ -798,6 +1021,8 @@ def train_head(
     ``teacher``: a trained head's weights over the same network (an ensemble, typically):
     the head learns the teacher's keep probabilities instead of the labels (distillation:
     one small head that decides like many).
+
+    ``workers``: processes drawing the training rows (the same rows at any number).
     """
     from .weights import read_card, save_model
 
@@ -812,7 +1037,9 @@ def train_head(
     run.mkdir(parents=True, exist_ok=True)
     folders = [part for d in data for part in dataset_folders(d)]
     card = read_card(base)
-    sets, summary_files, net = collect_sets(folders, base, run, config, progress=progress)
+    sets, summary_files, net = collect_sets(
+        folders, base, run, config, progress=progress, workers=workers
+    )
     if getattr(net, "head", None) is not None:
         del net.head  # a fresh head over the same network
     train, val = sets["train"], sets["test"]
