@@ -818,6 +818,7 @@ def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng, relative):
         (["--context", "2", "--context-widths", ""], "--context-widths needs at least one width"),
         (["--context-widths", "8,0"], "widths must be positive integers"),
         (["--members", "0"], "--members must be at least 1"),
+        (["--workers", "0"], "--workers must be at least 1"),
         (["--light-weight", "0"], "--light-weight must be positive, got 0.0"),
         (["--scene-weight", "nan"], "--scene-weight must be positive, got nan"),
         (["--thin", "0"], "thin must be in (0, 1]"),

@@ -220,6 +220,10 @@ def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
     assert main(["tune-head", "night", str(tmp_path), "--real", str(rec),
                  "--out", str(tmp_path / "r")]) == 1  # fmt: skip
     assert "no keep head" in capsys.readouterr().err
+    assert main(["tune-head", "learned", str(tmp_path), "--real", str(rec), "--workers", "0",
+                 "--out", str(tmp_path / "w")]) == 1  # fmt: skip
+    assert "--workers must be at least 1" in capsys.readouterr().err
+    assert not (tmp_path / "w").exists()
     with pytest.raises(EdeflareError, match="real_weight"):
         TuningConfig(real_weight=0.0)
     with pytest.raises(EdeflareError, match="lr must be a positive number, got nan"):

@@ -39,6 +39,16 @@ def add_thin_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_workers_option(p: argparse.ArgumentParser) -> None:
+    """The ``--workers N`` of ``train-head`` and ``tune-head``: processes drawing the rows."""
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="processes drawing the training rows from the data (the same rows at any number)",
+    )
+
+
 def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     """Register the command."""
     p = sub.add_parser(
@@ -133,12 +143,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="learn the keep probabilities of a trained head over the same network (e.g. an "
         "ensemble's RUN/model.safetensors) instead of the labels: one head that decides like it",
     )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=1,
-        help="processes drawing the training rows from the data (the same rows at any number)",
-    )
+    add_workers_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from ._common import sensor_size_arg
-from .train_head import add_thin_option
+from .train_head import add_thin_option, add_workers_option
 
 HELP = (
     "Fit a trained keep head's perceptrons further on simulated pairs and annotated real "
@@ -87,6 +87,7 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
     p.add_argument(
         "--sensor-size", type=sensor_size_arg, help="WxH, for recordings whose files do not say"
     )
+    add_workers_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -117,6 +118,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.real:
         raise ParameterError("give at least one --real recording")
+    if args.workers < 1:
+        raise ParameterError("--workers must be at least 1")
     config = TuningConfig(
         real_weight=args.real_weight,
         balance_classes=args.balance_classes,
@@ -145,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
         keep_threshold=args.keep_threshold,
         command=command,
         progress=not args.no_progress,
+        workers=args.workers,
     )
     print(
         f"keep threshold {summary['keep_threshold']:.2f} ({summary['threshold_chosen_on']}; "

@@ -373,6 +373,7 @@ def tune_head(
     keep_threshold: float | None = None,
     command: str = "",
     progress: bool = True,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """Fit the keep head of ``weights`` further on ``data``'s simulated training pairs and
     the annotated ``recordings`` ``(name, events, sensor_size, lights or None)``; write
@@ -380,7 +381,8 @@ def tune_head(
 
     The keep threshold is ``keep_threshold``, or, without it, chosen on the data's test
     splits as ``train-head`` chooses it (never on a real recording). The rows are cached
-    in ``run_dir``: a rerun after a kill goes on from them.
+    in ``run_dir``: a rerun after a kill goes on from them; ``workers`` processes draw
+    them (the same rows at any number).
     """
     from .head_training import _group, choose_threshold, collect_sets, context_columns
     from .infer import ModelDeflarer
@@ -408,7 +410,9 @@ def tune_head(
         context=head.context["channels"] if head.context else 0,
         thin=config.thin,
     )
-    sets, files_of, _ = collect_sets(folders, base, run, collect, progress=progress)
+    sets, files_of, _ = collect_sets(
+        folders, base, run, collect, progress=progress, workers=workers
+    )
     train, val = sets["train"], sets["test"]
     columns = {
         split: context_columns(head, rows) if head.context else rows["x"]
