@@ -27,8 +27,9 @@ case $form in
     *) echo "form must be relative, absolute, every or window, got $form" >&2; exit 2 ;;
 esac
 features=$ratios,$rates
+# --workers 2: the rows of one process, drawn by two (LF, LFA and LE drew theirs in one)
 edeflare train-head "$train" --weights night --out "$runs/$arm" --hidden 64,32 --epochs 12 \
-    --context 8 --members 3 --no-progress --features "$features" "${context[@]}"
+    --context 8 --members 3 --no-progress --features "$features" "${context[@]}" --workers 2
 bash experiments/rate-thinning/score_arms.sh "$faery" "$runs" "$arm"
 edeflare benchmark "$forward/test" --methods raw --model "$arm=$runs/$arm/model.safetensors" \
     --report "$runs/forward_$arm.md"
