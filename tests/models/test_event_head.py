@@ -819,6 +819,12 @@ def test_onnx_export_of_a_context_head_decides_alike(tmp_path, rng, relative):
         (["--context-widths", "8,0"], "widths must be positive integers"),
         (["--members", "0"], "--members must be at least 1"),
         (["--workers", "0"], "--workers must be at least 1"),
+        (["--device", "tpu"], "device must be auto, cpu, cuda or cuda:N, got 'tpu'"),
+        pytest.param(
+            ["--device", "cuda"],
+            "device 'cuda': torch sees no CUDA device here",
+            marks=pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA is here"),
+        ),
         (["--light-weight", "0"], "--light-weight must be positive, got 0.0"),
         (["--scene-weight", "nan"], "--scene-weight must be positive, got nan"),
         (["--thin", "0"], "thin must be in (0, 1]"),

@@ -144,6 +144,11 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         "ensemble's RUN/model.safetensors) instead of the labels: one head that decides like it",
     )
     add_workers_option(p)
+    p.add_argument(
+        "--device",
+        default="auto",
+        help="where the heads are fitted: auto (CUDA where available), cpu, cuda, cuda:1 ...",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -199,6 +204,7 @@ def run(args: argparse.Namespace) -> int:
         teacher=None if args.teacher is None else resolve_weights(args.teacher),
         progress=not args.no_progress,
         workers=args.workers,
+        device=args.device,
     )
     best = max(summary["threshold_table"], key=lambda r: r["score"])
     print(

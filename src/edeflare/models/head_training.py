@@ -73,6 +73,7 @@ __all__ = [
     "context_at",
     "context_columns",
     "fit_context_head",
+    "fit_device",
     "fit_head",
     "keep_labels",
     "load_teacher",
@@ -665,14 +666,15 @@ def _context_batch(
     rows: list[np.ndarray],
     ids: list[int],
 ) -> tuple[torch.Tensor, np.ndarray]:
-    """The features with their context columns of the rows of windows ``ids``, and the rows."""
-    maps = head.context_maps(_window_cells(data, ids))  # (B, k, h, w)
+    """The features with their context columns of the rows of windows ``ids`` (on the
+    head's device), and the rows."""
+    device = next(head.parameters()).device
+    maps = head.context_maps(_window_cells(data, ids).to(device))  # (B, k, h, w)
     idx = np.concatenate([rows[i] for i in ids])
-    which = np.concatenate([np.full(rows[i].size, j) for j, i in enumerate(ids)])
-    ctx = context_at(
-        maps, torch.from_numpy(which), torch.from_numpy(data["cell"][idx].astype(np.int64))
-    )
-    x = torch.from_numpy(np.ascontiguousarray(data["x"][idx], np.float32))
+    which = torch.from_numpy(np.concatenate([np.full(rows[i].size, j) for j, i in enumerate(ids)]))
+    cell = torch.from_numpy(data["cell"][idx].astype(np.int64))
+    ctx = context_at(maps, which.to(device), cell.to(device))
+    x = torch.from_numpy(np.ascontiguousarray(data["x"][idx], np.float32)).to(device)
     return torch.cat([x, ctx], 1), idx
 
 
@@ -771,29 +773,60 @@ def fit_head(
     light: np.ndarray | None = None,
     source: np.ndarray | None = None,
     progress: bool = True,
+    device: str = "auto",
 ) -> EventHead:
     """A head fitted to features ``x`` and labels ``y`` (True: keep), rows weighed by
     :func:`loss_weights` (``light``, ``source``: the collected rows' flags) (without a
     context: :func:`fit_context_head` learns one). ``targets``: keep probabilities to learn
     instead of the labels (a teacher's, :func:`teacher_targets`); the labels still weigh
-    the classes."""
+    the classes. ``device``: where it is fitted (:func:`fit_device`); returned on the CPU."""
+    dev = fit_device(device)
     torch.manual_seed(config.seed)
     head = EventHead(config.features, config.hidden)
     xt = torch.from_numpy(np.ascontiguousarray(x, np.float32))
-    weight = loss_weights(np.asarray(y, bool), config, light=light, source=source)
-    yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32))
+    weight = loss_weights(np.asarray(y, bool), config, light=light, source=source).to(dev)
+    yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32)).to(dev)
     head.standardise_on(xt)
+    head.to(dev)
+    xt = xt.to(dev)
     gen = torch.Generator().manual_seed(config.seed)
     size = config.batch_size
 
     def loss(b: torch.Tensor) -> torch.Tensor:
+        b = b.to(dev)
         return torch.nn.functional.binary_cross_entropy_with_logits(
             head(xt[b]) + LN3, yt[b], weight=weight[b]
         )
 
     steps = config.epochs * max(1, -(-len(yt) // size))
     return _optimise(head, config, steps, shuffled_batches(len(yt), size, config.epochs, gen),
-                     loss, progress)  # fmt: skip
+                     loss, progress).cpu()  # fmt: skip
+
+
+def fit_device(device: str = "auto") -> torch.device:
+    """The torch device a head is fitted on: ``"auto"`` (CUDA where available, else the
+    CPU), ``"cpu"``, ``"cuda"``, ``"cuda:1"``...
+
+    Examples
+    --------
+    >>> fit_device("cpu")
+    device(type='cpu')
+    >>> fit_device("tpu")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    edeflare.errors.ParameterError: device must be auto, cpu, cuda or cuda:N, got 'tpu'...
+    """
+    if device == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError):
+        dev = None
+    if dev is None or dev.type not in ("cpu", "cuda"):
+        raise ParameterError(f"device must be auto, cpu, cuda or cuda:N, got {device!r}")
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise ParameterError(f"device {device!r}: torch sees no CUDA device here")
+    return dev
 
 
 def shuffled_batches(
@@ -846,13 +879,16 @@ def fit_context_head(
     targets: np.ndarray | None = None,
     progress: bool = True,
     count_channels: int = 0,
+    device: str = "auto",
 ) -> EventHead:
     """A head with a context of ``config.context`` maps fitted to :func:`collect_features`'
     output (the rows with their windows' cells): each step learns from the drawn events of
     ``config.batch_windows`` windows of one sensor size, rows weighed by
     :func:`loss_weights`. ``targets``: keep probabilities to learn instead of the labels,
     as :func:`fit_head`. ``count_channels``: the cells' leading event-count channels, read
-    relative to the window's mean where ``config.relative_context``."""
+    relative to the window's mean where ``config.relative_context``. ``device``: where it is
+    fitted (:func:`fit_device`); returned on the CPU."""
+    dev = fit_device(device)
     torch.manual_seed(config.seed)
     y = data["y"]
     cells0 = data["cells_000000"]
@@ -878,8 +914,9 @@ def fit_context_head(
     )
     weight = loss_weights(
         np.asarray(y, bool), config, light=data.get("light"), source=data.get("source")
-    )
-    yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32))
+    ).to(dev)
+    yt = torch.from_numpy(np.asarray(y if targets is None else targets, np.float32)).to(dev)
+    head.to(dev)
     rows = _rows_of(data)
     rng = np.random.default_rng(config.seed)
 
@@ -889,13 +926,13 @@ def fit_context_head(
 
     def loss(ids: list[int]) -> torch.Tensor:
         z, idx = _context_batch(head, data, rows, ids)
-        b = torch.from_numpy(idx)
+        b = torch.from_numpy(idx).to(dev)
         return torch.nn.functional.binary_cross_entropy_with_logits(
             head(z) + LN3, yt[b], weight=weight[b]
         )
 
     steps = config.epochs * len(_window_batches(data, config.batch_windows, None))
-    return _optimise(head, config, steps, epochs(), loss, progress)
+    return _optimise(head, config, steps, epochs(), loss, progress).cpu()
 
 
 def choose_threshold(
@@ -1013,6 +1050,7 @@ def train_head(
     teacher: str | os.PathLike[str] | None = None,
     progress: bool = True,
     workers: int = 1,
+    device: str = "auto",
 ) -> dict[str, Any]:
     """Train a keep head on ``data``'s training splits over the ``base_weights`` mask
     network; write ``run_dir/model.safetensors`` (network, head, card with the threshold
@@ -1023,12 +1061,14 @@ def train_head(
     one small head that decides like many).
 
     ``workers``: processes drawing the training rows (the same rows at any number).
+    ``device``: where the heads are fitted (:func:`fit_device`).
     """
     from .weights import read_card, save_model
 
     config = config or HeadTrainingConfig()
     base = Path(base_weights)
-    teacher_head = (  # checked before anything is read or written
+    fit_device(device)  # checked before anything is read or written
+    teacher_head = (
         None
         if teacher is None
         else load_teacher(teacher, base, config.features, context=bool(config.context))
@@ -1046,7 +1086,12 @@ def train_head(
     targets = None if teacher_head is None else _head_probabilities(teacher_head, train)
     heads = [
         fit_context_head(
-            train, member, targets=targets, progress=progress, count_channels=2 * card.bins
+            train,
+            member,
+            targets=targets,
+            progress=progress,
+            count_channels=2 * card.bins,
+            device=device,
         )  # the cells: log counts of each bin and polarity, the firing share, the logits
         if config.context
         else fit_head(
@@ -1057,6 +1102,7 @@ def train_head(
             light=train.get("light"),
             source=train["source"],
             progress=progress,
+            device=device,
         )
         for member in (
             dataclasses.replace(config, seed=config.seed + i) for i in range(config.members)
