@@ -157,9 +157,17 @@ def keep_labels(inp: np.ndarray, gt: np.ndarray, tolerance_us: int = 1_000) -> n
     if (np.diff(ti) >= 0).all() and (np.diff(tg) >= 0).all():  # as every stream is stored
         n_keys = int(max(ki.max(), kg.max())) + 1
         return _match_time_sorted(ki, ti, kg, tg, n_keys, int(tolerance_us))
+    return _match_sorted_by_key(ki, ti, kg, tg, int(tolerance_us))
+
+
+def _match_sorted_by_key(
+    ki: np.ndarray, ti: np.ndarray, kg: np.ndarray, tg: np.ndarray, tolerance_us: int
+) -> np.ndarray:
+    """:func:`keep_labels` of streams in any order (keys and times given): both sorted by
+    key and time, then matched (``benchmarks/bench_labels.py``'s reference)."""
     oi = np.lexsort((ti, ki))
     og = np.lexsort((tg, kg))
-    out = np.empty(inp.size, bool)
+    out = np.empty(ki.size, bool)
     out[oi] = _match(ki[oi], ti[oi], kg[og], tg[og], int(tolerance_us))
     return out
 
