@@ -529,16 +529,19 @@ def collect_features(
     rows: dict[str, list[np.ndarray]] = {key: [] for key in (*_ROW_KEYS, "window", "cell")}
     cells: list[np.ndarray] = []
     sizes: list[SensorSize] = []
+    pooled = workers > 1 and len(files) > 1  # (the pool moves the bar as files finish)
     bar = progress_bar(total=len(files), enabled=progress, desc=desc, unit="file")
     with bar:
-        if workers == 1 or len(files) < 2:
-            per_file: Iterable[dict[str, list[Any]]] = (
+        if pooled:
+            per_file: Iterable[dict[str, list[Any]]] = _rows_in_pool(
+                files, rng, window_logits, window_us, config, balanced, cell_scale,
+                min(workers, len(files)), bar,
+            )  # fmt: skip
+        else:
+            per_file = (
                 _file_rows(f, k, rng, window_logits, window_us, config, balanced, cell_scale)
                 for k, f in enumerate(files)
             )
-        else:
-            per_file = _rows_in_pool(files, rng, window_logits, window_us, config, balanced,
-                                     cell_scale, min(workers, len(files)), bar)  # fmt: skip
         for got in per_file:
             for key in _ROW_KEYS:
                 rows[key] += got[key]
@@ -546,7 +549,7 @@ def collect_features(
             rows["cell"] += got["cell"]
             cells += [c for c, _ in got["cells"]]
             sizes += [size for _, size in got["cells"]]
-            if workers == 1 or len(files) < 2:
+            if not pooled:
                 bar.update(1)
     if not rows["x"]:
         raise EdeflareError("no events to learn from in " + ", ".join(map(str, files[:3])))
