@@ -20,7 +20,7 @@ import argparse
 import numpy as np
 from _common import best_of, random_events, report
 
-from edeflare.models.head_training import _match_sorted_by_key, keep_labels
+from edeflare.models.head_training import _keys_and_times, _match_sorted_by_key, keep_labels
 
 
 def pair(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -33,12 +33,7 @@ def pair(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
 
 def reference(inp: np.ndarray, gt: np.ndarray) -> np.ndarray:
     """Both streams sorted by pixel, polarity and time, then matched."""
-
-    def keys(ev: np.ndarray) -> np.ndarray:
-        return (ev["y"].astype(np.int64) * 640 + ev["x"]) * 2 + (ev["p"] != 0)
-
-    ti, tg = inp["t"].astype(np.int64), gt["t"].astype(np.int64)
-    return _match_sorted_by_key(keys(inp), ti, keys(gt), tg, 1_000)
+    return _match_sorted_by_key(*_keys_and_times(inp, gt), 1_000)
 
 
 def main() -> None:

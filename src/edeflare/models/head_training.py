@@ -147,17 +147,24 @@ def keep_labels(inp: np.ndarray, gt: np.ndarray, tolerance_us: int = 1_000) -> n
     polarity within ``tolerance_us`` each, matched in time order (True: scene, keep)."""
     if not inp.size or not gt.size:
         return np.zeros(inp.size, bool)
+    ki, ti, kg, tg = _keys_and_times(inp, gt)
+    if (np.diff(ti) >= 0).all() and (np.diff(tg) >= 0).all():  # as every stream is stored
+        n_keys = int(max(ki.max(), kg.max())) + 1
+        return _match_time_sorted(ki, ti, kg, tg, n_keys, int(tolerance_us))
+    return _match_sorted_by_key(ki, ti, kg, tg, int(tolerance_us))
+
+
+def _keys_and_times(
+    inp: np.ndarray, gt: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each event's pixel and polarity as one key (the same numbering for both streams)
+    and its time, as int64: ``(input keys, input times, gt keys, gt times)``."""
     width = int(max(inp["x"].max(), gt["x"].max())) + 1
 
     def keys(ev: np.ndarray) -> np.ndarray:
         return (ev["y"].astype(np.int64) * width + ev["x"]) * 2 + (ev["p"] != 0)
 
-    ki, kg = keys(inp), keys(gt)
-    ti, tg = inp["t"].astype(np.int64), gt["t"].astype(np.int64)
-    if (np.diff(ti) >= 0).all() and (np.diff(tg) >= 0).all():  # as every stream is stored
-        n_keys = int(max(ki.max(), kg.max())) + 1
-        return _match_time_sorted(ki, ti, kg, tg, n_keys, int(tolerance_us))
-    return _match_sorted_by_key(ki, ti, kg, tg, int(tolerance_us))
+    return keys(inp), inp["t"].astype(np.int64), keys(gt), gt["t"].astype(np.int64)
 
 
 def _match_sorted_by_key(
@@ -327,6 +334,7 @@ class NetworkLogits:
 
     @property
     def window_us(self) -> int:
+        """The network's window in microseconds."""
         return int(self.deflarer.window_us)
 
     def __call__(
@@ -827,10 +835,10 @@ def fit_device(device: str = "auto") -> torch.device:
     ...
     edeflare.errors.ParameterError: device must be auto, cpu, cuda or cuda:N, got 'tpu'...
     """
-    if device == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    from .infer import _device
+
     try:
-        dev = torch.device(device)
+        dev = _device(device)  # "auto": CUDA where available, as the network's own device
     except (RuntimeError, TypeError):
         dev = None
     if dev is None or dev.type not in ("cpu", "cuda"):
