@@ -13,6 +13,8 @@
 #   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS window > RUNS/lw.log 2>&1 &
 # With "every-thin": run LET, LE trained on thinned windows (--thin 0.25):
 #   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS every-thin > RUNS/let.log 2>&1 &
+# With "relative-thin": run LFT, LF trained on windows thinned over two decades (--thin 0.01):
+#   nohup bash experiments/gated-rates/full.sh TRAIN FAERY_DATA FORWARD RUNS relative-thin > RUNS/lft.log 2>&1 &
 set -euo pipefail
 train=$1 faery=$2 forward=$3 runs=$4 form=${5:-relative}
 ratios=net_logit,polarity,light_free,light_distance,halo,ghost,spike,far,crowded,field,\
@@ -28,7 +30,9 @@ case $form in
     every) arm=LE context=(--relative-context) rates=$ungated ;;
     window) arm=LW context=(--relative-context) rates=$gated,rate_window ;;
     every-thin) arm=LET context=(--relative-context) rates=$ungated thin=(--thin 0.25) ;;
-    *) echo "form must be relative, absolute, every, window or every-thin, got $form" >&2; exit 2 ;;
+    relative-thin) arm=LFT context=(--relative-context) rates=$gated thin=(--thin 0.01) ;;
+    *) echo "form must be relative, absolute, every, window, every-thin or relative-thin," \
+        "got $form" >&2; exit 2 ;;
 esac
 features=$ratios,$rates
 # --workers 2: the rows of one process, drawn by two (LF, LFA and LE drew theirs in one)
