@@ -10,6 +10,10 @@ lights would give this head without retraining; it chooses nothing.
 
 Run: python experiments/light-test/oracle.py FAERY_DATA   (writes results/oracle.json and
 oracle.png: 100 ms at 9.0 s, the input and the head's output both ways)
+
+With ``WEIGHTS NAME`` after FAERY_DATA, another head's weights in place of `learned`'s
+(results/oracle_NAME.json and oracle_NAME.png): python experiments/light-test/oracle.py
+FAERY_DATA RUNS/LET/model.safetensors LET
 """
 
 from __future__ import annotations
@@ -89,7 +93,9 @@ def main() -> None:
     events, size = read_events(path)
     lights = load_lights(ROOT / "benchmarks" / "night_recording_lights.json", size)
     regions = classify_events(events, lights, size)
-    d = ModelDeflarer(bundled_weights("learned"), runtime="torch")
+    weights, name = (sys.argv[2], sys.argv[3]) if len(sys.argv) > 3 else (None, "learned")
+    d = ModelDeflarer(weights or bundled_weights("learned"), runtime="torch")
+    suffix = "" if weights is None else f"_{name}"
     rows, frames, captions = [], [], []
     t = events["t"]
     lo, hi = np.searchsorted(t, int(t[0]) + PICTURE[0] + np.array([0, PICTURE[1]]))
@@ -98,7 +104,7 @@ def main() -> None:
     for oracle in (False, True):
         keep = decide(d, events, size, lights, oracle)
         frames.append(event_frame(events[lo:hi][keep[lo:hi]], size)[CROP])
-        captions.append("learned, " + ("the annotated lights" if oracle else "its light test"))
+        captions.append(f"{name}, " + ("the annotated lights" if oracle else "its light test"))
         row = {"light test": "the annotation" if oracle else "as is (none found)"}
         for r in ("halo", "ghost"):
             row[f"{r} removed"] = round(1 - float(keep[regions.mask(r)].mean()), 4)
@@ -110,10 +116,10 @@ def main() -> None:
                     "combined": round(2 * removed * kept / (removed + kept), 4)})  # fmt: skip
         rows.append(row)
         print(row, flush=True)
-    out = HERE / "results" / "oracle.json"
+    out = HERE / "results" / f"oracle{suffix}.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(rows, indent=1) + "\n")
-    save_image(HERE / "oracle.png", grid(frames, ncols=3, captions=captions))
+    save_image(HERE / f"oracle{suffix}.png", grid(frames, ncols=3, captions=captions))
 
 
 if __name__ == "__main__":
