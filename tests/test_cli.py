@@ -275,6 +275,23 @@ def test_an_interrupt_is_one_line_and_exit_130(monkeypatch, capsys, command, err
     assert capsys.readouterr().err == f"edeflare: interrupted{resume}\n"
 
 
+def test_warnings_are_one_line_and_resource_warnings_stay_hidden(monkeypatch, capsys):
+    """A command's warning is one line; a ResourceWarning (a file left to the collector,
+    as a Ctrl-C between open() and its with-block leaves one) is not shown."""
+    import warnings
+
+    from edeflare.cli import info
+
+    def run(args):
+        warnings.warn("unclosed file <_io.BufferedReader>", ResourceWarning, stacklevel=1)
+        warnings.warn("no sensor size recorded", UserWarning, stacklevel=1)
+        return 0
+
+    monkeypatch.setattr(info, "run", run)
+    assert main(["info", "x.h5"]) == 0
+    assert capsys.readouterr().err == "edeflare: warning: no sensor size recorded\n"
+
+
 @pytest.mark.filterwarnings("default")
 @pytest.mark.parametrize("suffix", [".h5", ".csv"])
 def test_view_and_convert_times_are_relative_to_the_recording(tmp_path, capsys, suffix):

@@ -174,6 +174,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("default")  # shown as one line, never raised
+            # Python's own default: a Ctrl-C between open() and its with-block leaves a
+            # file to the collector, which warns; the process closes it, no user's concern
+            warnings.simplefilter("ignore", ResourceWarning)
             warnings.showwarning = _show_warning
             return int(args.func(args))
     except KeyboardInterrupt:
