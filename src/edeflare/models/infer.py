@@ -65,7 +65,7 @@ from .mask_kernels import (
     keep_logit_threshold,
 )
 from .two_view import TwoViewStreamer, check_phase_shift, view_windows
-from .weights import ModelCard, load_model
+from .weights import ModelCard, WeightsError, load_model
 
 __all__ = [
     "DECODERS",
@@ -131,6 +131,31 @@ def resolve_weights(weights: str | os.PathLike[str] | None) -> str | os.PathLike
     if not Path(weights).suffix and not Path(weights).exists():
         return bundled_weights(str(weights))
     return weights
+
+
+def _unlit_weights(name: str, weights: str | os.PathLike[str]) -> str | os.PathLike[str]:
+    """The weights file of a card's ``unlit_model``: a bundled model's name, or a file
+    named relative to the folder of the model ``weights`` that names it."""
+    if not Path(name).suffix:
+        return bundled_weights(name)
+    path = Path(weights).parent / name
+    if not path.is_file():
+        raise WeightsError(f"{weights}: its card's unlit_model {name!r} is not a file ({path})")
+    return path
+
+
+def _check_unlit(model: ModelDeflarer, unlit: ModelDeflarer) -> None:
+    """Both experts must judge the same windows: mask models of one window length, the
+    unlit one without an expert of its own."""
+    where = f"{model.weights}: unlit_model {model.card.unlit_model!r}"
+    if not isinstance(model.model, FlareMaskNet) or not isinstance(unlit.model, FlareMaskNet):
+        raise WeightsError(f"{where}: both experts must be mask models (mask.* presets)")
+    if unlit.card.unlit_model:
+        raise WeightsError(f"{where} names an unlit_model of its own; one level only")
+    if unlit.window_us != model.window_us:
+        raise WeightsError(
+            f"{where} has {unlit.window_us} us windows, this model {model.window_us} us"
+        )
 
 
 @contextlib.contextmanager
@@ -354,6 +379,23 @@ class ModelDeflarer:
         self.decoder = decoder
         self.batch_windows = int(batch_windows)
         self.seed = int(seed)
+        self.unlit: ModelDeflarer | None = None
+        """The card's ``unlit_model``: the expert for windows without a found light."""
+        self._unlit_shift = 0.0
+        if card.unlit_model:
+            self.unlit = ModelDeflarer(
+                _unlit_weights(card.unlit_model, weights),
+                decoder=decoder,
+                device=str(self.device),
+                batch_windows=batch_windows,
+                seed=seed,
+                runtime="onnx" if self.runtime == "onnx" else "torch",
+            )
+            _check_unlit(self, self.unlit)
+            # its logits moved so that this card's keep threshold is its own card's
+            self._unlit_shift = keep_logit_threshold(card.keep_threshold) - keep_logit_threshold(
+                self.unlit.card.keep_threshold
+            )
 
     @property
     def window_us(self) -> int:
@@ -497,7 +539,44 @@ class ModelDeflarer:
         support: bool = False,
     ) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
         """:meth:`window_logits`' logits (the rules' shifts added only where ``rules``),
-        and each window's 5x5 support where the rules, a head or ``support`` ask for it."""
+        and each window's 5x5 support where the rules, a head or ``support`` ask for it.
+        With an ``unlit`` expert, the windows where the light test finds no light are its
+        (its logits shifted onto this card's keep threshold), the others this model's."""
+        if self.unlit is None:
+            return self._own_keep_logits(batch, sensor_size, cells, rules=rules, support=support)
+        w = self.window_us
+        lit = [WindowContext(ev, sensor_size, covered_us(ev, s, w)).has_lights for s, ev in batch]
+        logits: list[np.ndarray] = [np.empty(0, np.float32)] * len(batch)
+        supports: list[np.ndarray | None] = [None] * len(batch)
+        window_cells: list[np.ndarray] = [np.empty(0, np.float32)] * len(batch)
+        for expert, found in ((self, True), (self.unlit, False)):
+            idx = [k for k, f in enumerate(lit) if f == found]
+            if not idx:
+                continue
+            sub = [batch[k] for k in idx]
+            got: list[np.ndarray] | None = [] if cells is not None else None
+            keep = expert._own_keep_logits if expert is self else expert._keep_logits
+            out, sups = keep(sub, sensor_size, got, rules=rules, support=support)
+            shift = 0.0 if expert is self else self._unlit_shift
+            for j, k in enumerate(idx):
+                logits[k] = out[j] + np.float32(shift) if shift else out[j]
+                supports[k] = sups[j]
+                if got is not None:
+                    window_cells[k] = got[j]
+        if cells is not None:
+            cells.extend(window_cells)
+        return logits, supports
+
+    def _own_keep_logits(
+        self,
+        batch: list[tuple[int, np.ndarray]],
+        sensor_size: SensorSize,
+        cells: list[np.ndarray] | None = None,
+        *,
+        rules: bool = True,
+        support: bool = False,
+    ) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
+        """:meth:`_keep_logits` of this model's own network, head and rules."""
         head = self.head_params
         apply = rules and self.rules.active
         need = support or (apply and self.rules.needs_support) or head is not None
@@ -556,6 +635,11 @@ class ModelDeflarer:
         """
         if self.head_params is None:
             raise EdeflareError(f"{self.weights}: no keep head to read inputs for")
+        if self.unlit is not None:
+            raise EdeflareError(
+                f"{self.weights}: two experts (unlit_model {self.card.unlit_model!r}); "
+                "read each one's head inputs apart"
+            )
         out, supports, maps = self._network_logits(batch, sensor_size, True)
         w = self.window_us
         return [

@@ -74,8 +74,18 @@ class ModelCard:
     head: dict[str, Any] = field(default_factory=dict)
     """Mask models: the learned per-event keep head's layout (feature names, hidden
     widths; :class:`~edeflare.models.event_head.EventHead`), empty for none."""
+    unlit_model: str = ""
+    """Mask models: another mask model (a bundled model's name, or a weights file named
+    relative to this one's folder) that judges the windows where the light test finds no
+    light (:attr:`~edeflare.rules.context.WindowContext.has_lights`); empty: this model
+    judges every window (:class:`~edeflare.models.infer.ModelDeflarer`)."""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.unlit_model, str):
+            raise WeightsError(
+                f"model card: unlit_model must be text (a model's name or file), "
+                f"got {self.unlit_model!r}"
+            )
         try:
             RuleSet(self.rules)
             if self.head:
@@ -88,10 +98,12 @@ class ModelCard:
         return RuleSet(self.rules)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form (without ``head`` when there is none: older cards stay as they were)."""
+        """Plain-JSON form (without ``head`` or ``unlit_model`` when there is none: older
+        cards stay as they were)."""
         out = dataclasses.asdict(self)
-        if not out["head"]:
-            del out["head"]
+        for key in ("head", "unlit_model"):
+            if not out[key]:
+                del out[key]
         return out
 
     @classmethod
