@@ -157,6 +157,21 @@ def test_bad_unlit_models_are_refused_naming_the_problem(tmp_path):
         ModelDeflarer(mixed)
 
 
+def test_bundling_refuses_an_unlit_model_that_cannot_be_found(tmp_path):
+    from edeflare.models.bundle import bundle_weights
+
+    save_expert(tmp_path / "a.safetensors", 0.0)
+    out = tmp_path / "out" / "g.safetensors"
+    out.parent.mkdir()
+    with pytest.raises(WeightsError, match=r"unlit_model 'a.safetensors' is not a file"):
+        bundle_weights(tmp_path / "a.safetensors", out, assignments=["unlit_model=a.safetensors"])
+    assert not out.exists()
+    with pytest.raises(EdeflareError, match="moonlight"):
+        bundle_weights(tmp_path / "a.safetensors", out, assignments=["unlit_model=moonlight"])
+    card = bundle_weights(tmp_path / "a.safetensors", out, assignments=["unlit_model=learned"])
+    assert card["unlit_model"] == "learned" and ModelDeflarer(out).unlit is not None
+
+
 def test_head_inputs_of_two_experts_are_refused(tmp_path):
     save_expert(tmp_path / "a.safetensors", 0.0)
     d = ModelDeflarer(save_expert(tmp_path / "g.safetensors", 0.0, unlit="a.safetensors"))

@@ -151,6 +151,10 @@ def bundle_weights(
     if metrics:
         card["metrics"] = {**card.get("metrics", {}), **dict(metrics)}
     card = card_type.from_dict(card).to_dict()  # type: ignore[attr-defined]
+    if card.get("unlit_model"):  # found where it will be loaded from, or refused now
+        from .infer import unlit_model_file
+
+        unlit_model_file(card["unlit_model"], out)
     tensors = read_tensors(path)
     _check_fits(path, tensors, key, card)
     if half:

@@ -74,6 +74,7 @@ __all__ = [
     "ModelDeflarer",
     "bundled_weights",
     "resolve_weights",
+    "unlit_model_file",
 ]
 
 DECODERS = ("keep", "paper")
@@ -133,9 +134,19 @@ def resolve_weights(weights: str | os.PathLike[str] | None) -> str | os.PathLike
     return weights
 
 
-def _unlit_weights(name: str, weights: str | os.PathLike[str]) -> str | os.PathLike[str]:
-    """The weights file of a card's ``unlit_model``: a bundled model's name, or a file
-    named relative to the folder of the model ``weights`` that names it."""
+def unlit_model_file(name: str, weights: str | os.PathLike[str]) -> str | os.PathLike[str]:
+    """The weights file of a card's ``unlit_model`` ``name``: a bundled model's name, or a
+    file named relative to the folder of the model ``weights`` whose card names it.
+
+    Examples
+    --------
+    >>> unlit_model_file("learned", "runs/pair.safetensors").name
+    'learned.safetensors'
+    >>> unlit_model_file("lit.safetensors", "runs/pair.safetensors")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    edeflare.models.weights.WeightsError: runs/pair.safetensors: its card's unlit_model 'lit...
+    """
     if not Path(name).suffix:
         return bundled_weights(name)
     path = Path(weights).parent / name
@@ -384,7 +395,7 @@ class ModelDeflarer:
         self._unlit_shift = 0.0
         if card.unlit_model:
             self.unlit = ModelDeflarer(
-                _unlit_weights(card.unlit_model, weights),
+                unlit_model_file(card.unlit_model, weights),
                 decoder=decoder,
                 device=str(self.device),
                 batch_windows=batch_windows,
