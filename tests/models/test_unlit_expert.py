@@ -132,7 +132,7 @@ def test_the_card_names_the_unlit_model_only_where_there_is_one(tmp_path):
 
 
 def test_a_bundled_models_name_is_an_unlit_model(tmp_path):
-    d = ModelDeflarer(save_expert(tmp_path / "g.safetensors", 0.0, unlit="learned"))
+    d = ModelDeflarer(save_expert(tmp_path / "g.safetensors", 0.0, unlit="learned-absolute"))
     assert d.unlit is not None and d.unlit.card.head and d.unlit.card.keep_threshold == 0.4
 
 
@@ -142,7 +142,7 @@ def test_bad_unlit_models_are_refused_naming_the_problem(tmp_path):
         ModelDeflarer(bad)
     with pytest.raises(EdeflareError, match="moonlight"):
         ModelDeflarer(save_expert(tmp_path / "n.safetensors", 0.0, unlit="moonlight"))
-    save_expert(tmp_path / "b.safetensors", 0.0, unlit="learned")
+    save_expert(tmp_path / "b.safetensors", 0.0, unlit="learned-absolute")
     chain = save_expert(tmp_path / "c.safetensors", 0.0, unlit="b.safetensors")
     with pytest.raises(WeightsError, match="names an unlit_model of its own; one level only"):
         ModelDeflarer(chain)
@@ -168,8 +168,42 @@ def test_bundling_refuses_an_unlit_model_that_cannot_be_found(tmp_path):
     assert not out.exists()
     with pytest.raises(EdeflareError, match="moonlight"):
         bundle_weights(tmp_path / "a.safetensors", out, assignments=["unlit_model=moonlight"])
-    card = bundle_weights(tmp_path / "a.safetensors", out, assignments=["unlit_model=learned"])
-    assert card["unlit_model"] == "learned" and ModelDeflarer(out).unlit is not None
+    card = bundle_weights(
+        tmp_path / "a.safetensors", out, assignments=["unlit_model=learned-absolute"]
+    )
+    assert card["unlit_model"] == "learned-absolute" and ModelDeflarer(out).unlit is not None
+
+
+def test_the_cards_rules_act_on_both_experts_windows(tmp_path):
+    ev, _ = light_and_dark_windows()
+    save_expert(tmp_path / "a.safetensors", -3.0)  # drops the dark window alone
+    pair = save_expert(tmp_path / "g.safetensors", 2.0, unlit="a.safetensors")
+    batch = [(0, ev[ev["t"] < WINDOW]), (WINDOW, ev[ev["t"] >= WINDOW])]
+    # the light-free rule raises every event of the dark window (the unlit expert's)
+    plain = ModelDeflarer(pair, runtime="torch").window_logits(batch, SIZE)
+    raised = ModelDeflarer(pair, runtime="torch", light_free_shift=5.0).window_logits(batch, SIZE)
+    np.testing.assert_allclose(raised[1] - plain[1], 5.0)
+    np.testing.assert_array_equal(raised[0], plain[0])
+    lit = np.count_nonzero(ev["t"] < WINDOW)
+    assert deflare(ev, SIZE, "model", weights=pair, phase_shift_us=0).size == lit
+    kept = deflare(ev, SIZE, "model", weights=pair, light_free_shift=5.0, phase_shift_us=0)
+    assert kept.size == ev.size
+    # and the rule terms split them as de-flaring decides
+    terms = ModelDeflarer(pair, runtime="torch").rule_terms(ev, SIZE, (0,))
+    cut = -math.log(3.0)  # keep probability 0.5
+    assert np.count_nonzero(terms.logits({}, views=[0]) > cut) == lit
+    assert np.count_nonzero(terms.logits({"light_free_shift": 5.0}, views=[0]) > cut) == ev.size
+
+
+def test_an_unlit_model_that_sets_rules_is_refused(tmp_path):
+    torch.manual_seed(0)
+    net = create_model("mask.lite")
+    net.head = constant_head(0.0)
+    card = ModelCard(preset="mask.lite", head=net.head.spec(), rules={"halo_shift": 3.0})
+    save_model(tmp_path / "r.safetensors", net, card)
+    pair = save_expert(tmp_path / "g.safetensors", 0.0, unlit="r.safetensors")
+    with pytest.raises(WeightsError, match=r"sets rule knobs \['halo_shift'\]"):
+        ModelDeflarer(pair)
 
 
 def test_head_inputs_of_two_experts_are_refused(tmp_path):

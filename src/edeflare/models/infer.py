@@ -163,6 +163,11 @@ def _check_unlit(model: ModelDeflarer, unlit: ModelDeflarer) -> None:
         raise WeightsError(f"{where}: both experts must be mask models (mask.* presets)")
     if unlit.card.unlit_model:
         raise WeightsError(f"{where} names an unlit_model of its own; one level only")
+    if unlit.rules.active:
+        on = sorted(k for k, v in unlit.card.rules.items() if v)
+        raise WeightsError(
+            f"{where} sets rule knobs {on}; the rules of a pair are its first card's"
+        )
     if unlit.window_us != model.window_us:
         raise WeightsError(
             f"{where} has {unlit.window_us} us windows, this model {model.window_us} us"
@@ -552,10 +557,13 @@ class ModelDeflarer:
         """:meth:`window_logits`' logits (the rules' shifts added only where ``rules``),
         and each window's 5x5 support where the rules, a head or ``support`` ask for it.
         With an ``unlit`` expert, the windows where the light test finds no light are its
-        (its logits shifted onto this card's keep threshold), the others this model's."""
+        (its logits shifted onto this card's keep threshold), the others this model's, and
+        this card's rules act on both."""
         if self.unlit is None:
             return self._own_keep_logits(batch, sensor_size, cells, rules=rules, support=support)
         w = self.window_us
+        apply = rules and self.rules.active
+        need = support or (apply and self.rules.needs_support)
         lit = [WindowContext(ev, sensor_size, covered_us(ev, s, w)).has_lights for s, ev in batch]
         logits: list[np.ndarray] = [np.empty(0, np.float32)] * len(batch)
         supports: list[np.ndarray | None] = [None] * len(batch)
@@ -564,18 +572,23 @@ class ModelDeflarer:
             idx = [k for k, f in enumerate(lit) if f == found]
             if not idx:
                 continue
-            sub = [batch[k] for k in idx]
             got: list[np.ndarray] | None = [] if cells is not None else None
-            keep = expert._own_keep_logits if expert is self else expert._keep_logits
-            out, sups = keep(sub, sensor_size, got, rules=rules, support=support)
-            shift = 0.0 if expert is self else self._unlit_shift
+            out, sups = expert._own_keep_logits(
+                [batch[k] for k in idx], sensor_size, got, rules=False, support=need
+            )
+            shift = np.float32(0.0 if expert is self else self._unlit_shift)
             for j, k in enumerate(idx):
-                logits[k] = out[j] + np.float32(shift) if shift else out[j]
+                logits[k] = out[j] + shift if shift else out[j]
                 supports[k] = sups[j]
                 if got is not None:
                     window_cells[k] = got[j]
         if cells is not None:
             cells.extend(window_cells)
+        if apply:  # this card's rules (and their overrides) over both experts' windows
+            for (start, events), v, sup in zip(batch, logits, supports, strict=True):
+                self.rules.apply(
+                    v, WindowContext(events, sensor_size, covered_us(events, start, w), sup)
+                )
         return logits, supports
 
     def _own_keep_logits(
