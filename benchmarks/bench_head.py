@@ -1,6 +1,6 @@
 """What a learned head's perceptrons cost per event, and how near the CPU's BLAS they run.
 
-A context head (the bundled `learned`: three members of 64 and 32 units over 21 features,
+A context head (the bundled `learned-absolute`: three members of 64 and 32 units over 21 features,
 each with 8 context maps) decides every event with about 10,300 multiply-adds: the first
 layers side by side (21 x 192), then per member 64 x 32 and 32 x 1. The context's share of
 the first layer is one product per cell, added to its events' rows
@@ -11,7 +11,7 @@ against the first two products alone (``products only``, no bias, ReLU or per-me
 slicing: what a fused kernel could at best approach). Random values cost what real ones
 do: every product is dense.
 
-Run: ``python benchmarks/bench_head.py [--model learned] [--events N] [--repeat K]``;
+Run: ``python benchmarks/bench_head.py [--model learned-absolute] [--events N] [--repeat K]``;
 writes ``results/head.json``.
 """
 
@@ -68,7 +68,7 @@ def torch_logits(layers: _StackedHead, dtype: torch.dtype) -> Callable[..., torc
 def main() -> None:
     """Time the head's paths and print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", default="learned", help="a bundled model with a head")
+    parser.add_argument("--model", default="learned-absolute", help="a bundled model with a head")
     parser.add_argument("--events", type=int, default=200_000)
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()

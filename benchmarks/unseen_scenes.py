@@ -50,7 +50,7 @@ from edeflare.io.sequence import file_sha256
 BIN_US = 100_000
 """The bins the dense and sparse shares are taken over."""
 METHODS = ("dv-fastdecay", "pfd-a", "efr")
-MODELS = ("night", "general", "learned")
+MODELS = ("night", "general", "learned-absolute", "learned")
 
 
 def _read_face(path: Path) -> tuple[np.ndarray, SensorSize]:

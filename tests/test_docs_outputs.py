@@ -613,7 +613,7 @@ def test_readme_demo_shares_are_todays(tmp_path):
 
 # --- the model cards ---------------------------------------------------------------------
 
-CARDS = ("night", "general", "learned", "eflare", "paper", "firenet")
+CARDS = ("night", "general", "learned", "learned-absolute", "eflare", "paper", "firenet")
 PRESETS = {"night": "mask.pixel", "eflare": "unet2d.lite", "paper": "unet3d.paper"}
 
 

@@ -1,14 +1,14 @@
-"""The bundled learned heads (`general`, `learned`) beside `night` on dense simulated
-flare and on the real recordings.
+"""The bundled learned heads (`general`, `learned-absolute`, `learned`) beside `night` on
+dense simulated flare and on the real recordings.
 
     python docs/figures/make_heads.py docs/figures/heads.png
 
 Writes ``heads_forward.png`` (one 20 ms window of three ``eflare-forward`` sequences,
 simulated into ``benchmarks/.data/eflare-forward`` first if absent: the input, its
-ground truth, ``night``, ``general``, ``learned``) and ``heads_real.png`` (a 20 ms window
-of the DAVIS346 lamps, the Prophesee Gen3 light and a dim Newton's cradle: the input,
-``night``, ``general``, ``learned``) and ``heads_street.png`` (the whole Gen4.1 daytime
-street, the same columns) beside OUT. ON red, OFF blue.
+ground truth, ``night``, ``general``, ``learned-absolute``, ``learned``) and
+``heads_real.png`` (a 20 ms window of the DAVIS346 lamps, the Prophesee Gen3 light and a
+dim Newton's cradle: the input and the four models) and ``heads_street.png`` (the whole
+Gen4.1 daytime street, the same columns) beside OUT. ON red, OFF blue.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ REAL_WINDOWS = (
 )
 STREET = "prophesee_gen41_street.raw"
 """1280x720, 8.8 ms: a figure of its own (one row, at its own scale)."""
-MODELS = ("night", "general", "learned")
+MODELS = ("night", "general", "learned-absolute", "learned")
 WINDOW_US = 20_000
 
 

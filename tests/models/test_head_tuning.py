@@ -110,7 +110,7 @@ def test_holding_the_simulated_rows_keeps_what_the_head_did_on_them(rng):
 
 
 def test_a_recordings_inputs_give_the_models_own_logits(rng):
-    d = ModelDeflarer(bundled_weights("learned"), runtime="torch")
+    d = ModelDeflarer(bundled_weights("learned-absolute"), runtime="torch")
     ev = random_events(rng, 3_000, (64, 48), t0=3_000, span_us=50_000)
     inputs = recording_inputs(d, ev, (64, 48), (0, 5_000))
     assert inputs.shape == (2, 3_000, 45)
@@ -213,15 +213,19 @@ def test_tune_head_keeps_what_a_recordings_annotation_calls_light(tmp_path, rng,
 
 
 def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
-    assert main(["tune-head", "learned", str(tmp_path), "--out", str(tmp_path / "r")]) == 1
+    assert main(["tune-head", "learned-absolute", str(tmp_path), "--out",
+                 str(tmp_path / "r")]) == 1  # fmt: skip
     assert "--real" in capsys.readouterr().err
     rec = tmp_path / "r.h5"
     write_events(rec, make_events([0, 1], [1, 2], [1, 2], [1, 0]), (8, 8))
     assert main(["tune-head", "night", str(tmp_path), "--real", str(rec),
                  "--out", str(tmp_path / "r")]) == 1  # fmt: skip
     assert "no keep head" in capsys.readouterr().err
-    assert main(["tune-head", "learned", str(tmp_path), "--real", str(rec), "--workers", "0",
-                 "--out", str(tmp_path / "w")]) == 1  # fmt: skip
+    assert main(["tune-head", "learned", str(tmp_path), "--real", str(rec),
+                 "--out", str(tmp_path / "p")]) == 1  # fmt: skip
+    assert "two experts (unlit_model 'learned-absolute')" in capsys.readouterr().err
+    assert main(["tune-head", "learned-absolute", str(tmp_path), "--real", str(rec),
+                 "--workers", "0", "--out", str(tmp_path / "w")]) == 1  # fmt: skip
     assert "--workers must be at least 1" in capsys.readouterr().err
     assert not (tmp_path / "w").exists()
     with pytest.raises(EdeflareError, match="real_weight"):
@@ -234,9 +238,9 @@ def test_tune_head_refuses_bad_input_naming_it(tmp_path, capsys):
         TuningConfig(validate_last=1.0)
     empty = tmp_path / "empty.h5"
     write_events(empty, make_events([], [], [], []), (8, 8))
-    assert main(["tune-head", "learned", str(tmp_path), "--real", str(empty),
+    assert main(["tune-head", "learned-absolute", str(tmp_path), "--real", str(empty),
                  "--out", str(tmp_path / "r")]) == 1  # fmt: skip
     assert "empty: the recording holds no events" in capsys.readouterr().err
     with pytest.raises(EdeflareError, match="keep_threshold"):
-        tune_head(bundled_weights("learned"), [tmp_path], [("r", None, (8, 8), None)],
+        tune_head(bundled_weights("learned-absolute"), [tmp_path], [("r", None, (8, 8), None)],
                   tmp_path / "r", keep_threshold=1.5)  # fmt: skip

@@ -222,3 +222,26 @@ def test_onnx_runtime_decides_as_torch_with_two_experts(tmp_path):
     b = deflare(ev, SIZE, "model", weights=gated, runtime="onnx")
     assert a.size == b.size and np.array_equal(a["t"], b["t"])
     assert ModelDeflarer(gated, runtime="onnx").unlit.runtime == "onnx"
+
+
+def test_info_names_the_unlit_model(capsys):
+    from edeflare.cli import main
+
+    assert main(["info", "learned"]) == 0
+    out = capsys.readouterr().out
+    assert "unlit       learned-absolute judges the windows where no light is found" in out
+    assert main(["info", "learned-absolute"]) == 0
+    assert "unlit " not in capsys.readouterr().out
+
+
+def test_a_pairs_network_logits_for_training_are_its_networks_in_every_window():
+    from edeflare.models.head_training import NetworkLogits
+    from edeflare.models.infer import bundled_weights
+
+    ev, found = light_and_dark_windows()
+    batch = [(0, ev[ev["t"] < WINDOW]), (WINDOW, ev[ev["t"] >= WINDOW])]
+    pair = NetworkLogits(bundled_weights("learned")).deflarer.window_logits(batch, SIZE)
+    alone = NetworkLogits(bundled_weights("learned-absolute")).deflarer.window_logits(batch, SIZE)
+    assert found == [True, False]
+    for a, b in zip(pair, alone, strict=True):
+        np.testing.assert_array_equal(a, b)  # night's network, no head, in both windows

@@ -132,6 +132,8 @@ def _card(path: Path) -> int:
                       f"channels, U-Net widths {levels}")  # fmt: skip
             if card.head.get("members"):
                 print(f"members     {card.head['members']} heads, their mean keep logit")
+        if card.unlit_model:
+            print(f"unlit       {card.unlit_model} judges the windows where no light is found")
     for key, value in card.metrics.items():
         print(f"{key:<11} {value}")
     for name in ("data", "command", "notes"):

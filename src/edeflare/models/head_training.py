@@ -320,7 +320,8 @@ class NetworkLogits:
 
     @property
     def deflarer(self) -> Any:
-        """The :class:`~edeflare.models.infer.ModelDeflarer` (torch, rules off, no head)."""
+        """The :class:`~edeflare.models.infer.ModelDeflarer` (torch, rules off, no head, no
+        second expert: the network's own logits in every window)."""
         if self._deflarer is None:
             from .infer import ModelDeflarer
             from .weights import read_card
@@ -329,6 +330,7 @@ class NetworkLogits:
             rules_off = {k: 0 for k in card.rules}
             deflarer = ModelDeflarer(self.weights, runtime="torch", batch_windows=1, **rules_off)
             deflarer.head_params = None
+            deflarer.unlit = None
             self._deflarer = deflarer
         return self._deflarer
 
@@ -1138,6 +1140,7 @@ def train_head(
         card,
         head=head.spec(),
         rules={},
+        unlit_model="",  # the new head judges every window
         keep_threshold=threshold,
         command=command or f"train_head({[str(d) for d in data]!r}, {str(base)!r})",
         data=" ".join(str(d) for d in folders),

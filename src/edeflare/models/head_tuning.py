@@ -394,6 +394,11 @@ def tune_head(
     head = getattr(model, "head", None)
     if not isinstance(head, (EventHead, EventHeadEnsemble)):
         raise EdeflareError(f"{weights}: no keep head to fit further (train one with train-head)")
+    if card.unlit_model:
+        raise EdeflareError(
+            f"{weights}: two experts (unlit_model {card.unlit_model!r}); fit each one apart "
+            "and pair them again with edeflare bundle --card unlit_model=..."
+        )
     if keep_threshold is not None and not 0.0 < keep_threshold < 1.0:
         raise EdeflareError(f"keep_threshold must be in (0, 1), got {keep_threshold}")
     names = [name for name, *_ in recordings]

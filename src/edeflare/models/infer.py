@@ -651,7 +651,7 @@ class ModelDeflarer:
         Examples
         --------
         >>> from edeflare.events import make_events
-        >>> d = ModelDeflarer(bundled_weights("learned"), runtime="torch")
+        >>> d = ModelDeflarer(bundled_weights("learned-absolute"), runtime="torch")
         >>> ev = make_events([10, 30, 50], [1, 2, 3], [1, 2, 3], [1, 0, 1])
         >>> (x,) = d.head_inputs([(0, ev)], (64, 64))
         >>> x.shape                      # 21 features and three members' 8 context maps
