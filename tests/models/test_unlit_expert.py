@@ -230,6 +230,7 @@ def test_info_names_the_unlit_model(capsys):
     assert main(["info", "learned"]) == 0
     out = capsys.readouterr().out
     assert "unlit       learned-absolute judges the windows where no light is found" in out
+    assert "; 16 count channels relative to the window's mean" in out
     assert main(["info", "learned-absolute"]) == 0
     assert "unlit " not in capsys.readouterr().out
 

@@ -128,8 +128,11 @@ def _card(path: Path) -> int:
             context = card.head.get("context")
             if context:
                 levels = ", ".join(map(str, context["widths"]))
+                relative = context.get("relative_counts")
                 print(f"context     {context['channels']} maps of {context['inputs']} cell "
-                      f"channels, U-Net widths {levels}")  # fmt: skip
+                      f"channels, U-Net widths {levels}"
+                      + (f"; {relative} count channels relative to the window's mean"
+                         if relative else ""))  # fmt: skip
             if card.head.get("members"):
                 print(f"members     {card.head['members']} heads, their mean keep logit")
         if card.unlit_model:
