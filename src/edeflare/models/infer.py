@@ -559,23 +559,27 @@ class ModelDeflarer:
         With an ``unlit`` expert, the windows where the light test finds no light are its
         (its logits shifted onto this card's keep threshold), the others this model's, and
         this card's rules act on both."""
-        if self.unlit is None:
-            return self._own_keep_logits(batch, sensor_size, cells, rules=rules, support=support)
         w = self.window_us
+        # one context per window (the lights found once): the gate, the head and the rules
+        contexts = [WindowContext(ev, sensor_size, covered_us(ev, s, w)) for s, ev in batch]
+        if self.unlit is None:
+            return self._own_keep_logits(
+                batch, sensor_size, contexts, cells, rules=rules, support=support
+            )
         apply = rules and self.rules.active
         need = support or (apply and self.rules.needs_support)
-        lit = [WindowContext(ev, sensor_size, covered_us(ev, s, w)).has_lights for s, ev in batch]
         logits: list[np.ndarray] = [np.empty(0, np.float32)] * len(batch)
         supports: list[np.ndarray | None] = [None] * len(batch)
         window_cells: list[np.ndarray] = [np.empty(0, np.float32)] * len(batch)
         for expert, found in ((self, True), (self.unlit, False)):
-            idx = [k for k, f in enumerate(lit) if f == found]
+            idx = [k for k, ctx in enumerate(contexts) if ctx.has_lights == found]
             if not idx:
                 continue
             got: list[np.ndarray] | None = [] if cells is not None else None
             out, sups = expert._own_keep_logits(
-                [batch[k] for k in idx], sensor_size, got, rules=False, support=need
-            )
+                [batch[k] for k in idx], sensor_size, [contexts[k] for k in idx], got,
+                rules=False, support=need,
+            )  # fmt: skip
             shift = np.float32(0.0 if expert is self else self._unlit_shift)
             for j, k in enumerate(idx):
                 logits[k] = out[j] + shift if shift else out[j]
@@ -585,32 +589,30 @@ class ModelDeflarer:
         if cells is not None:
             cells.extend(window_cells)
         if apply:  # this card's rules (and their overrides) over both experts' windows
-            for (start, events), v, sup in zip(batch, logits, supports, strict=True):
-                self.rules.apply(
-                    v, WindowContext(events, sensor_size, covered_us(events, start, w), sup)
-                )
+            for v, ctx in zip(logits, contexts, strict=True):
+                self.rules.apply(v, ctx)
         return logits, supports
 
     def _own_keep_logits(
         self,
         batch: list[tuple[int, np.ndarray]],
         sensor_size: SensorSize,
+        contexts: list[WindowContext],
         cells: list[np.ndarray] | None = None,
         *,
         rules: bool = True,
         support: bool = False,
     ) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
-        """:meth:`_keep_logits` of this model's own network, head and rules."""
+        """:meth:`_keep_logits` of this model's own network, head and rules; ``contexts``
+        are the windows' (their support is set here, once the network has counted it)."""
         head = self.head_params
         apply = rules and self.rules.active
         need = support or (apply and self.rules.needs_support) or head is not None
         out, supports, maps = self._network_logits(batch, sensor_size, need, cells)
         if not apply and head is None:
             return out, supports
-        w = self.window_us
-        for k, ((start, events), v, sup) in enumerate(zip(batch, out, supports, strict=True)):
-            # the lights' rates over the part of the window the stream covers
-            ctx = WindowContext(events, sensor_size, covered_us(events, start, w), sup)
+        for k, (v, sup, ctx) in enumerate(zip(out, supports, contexts, strict=True)):
+            ctx.support = sup
             if head is not None:
                 v = out[k] = self._head_logits(ctx, v, None if maps is None else maps[k])
             if apply:
