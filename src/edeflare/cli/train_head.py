@@ -125,6 +125,14 @@ def add_parser(sub: argparse._SubParsersAction, **kwargs: object) -> None:
         help="weigh the events of each pair's scene alone (a recording without a light) W "
         "times their class in the loss",
     )
+    p.add_argument(
+        "--windows",
+        choices=("all", "lit", "unlit"),
+        default="all",
+        help="fit the head (and choose its threshold) only on the windows where the light test "
+        "finds a light (lit) or finds none (unlit): an expert of a pair, whose card names the "
+        "unlit one (edeflare bundle --card unlit_model=...); needs the light_free feature",
+    )
     add_thin_option(p)
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--lr", type=float, default=3e-3)
@@ -193,6 +201,7 @@ def run(args: argparse.Namespace) -> int:
         light_weight=args.light_weight,
         scene_weight=args.scene_weight,
         thin=args.thin,
+        windows=args.windows,
     )
     command = "edeflare " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "edeflare train-head"
     summary = train_head(

@@ -78,6 +78,7 @@ __all__ = [
     "keep_labels",
     "load_teacher",
     "loss_weights",
+    "rows_in_windows",
     "shuffled_batches",
     "teacher_targets",
     "thinned",
@@ -230,6 +231,12 @@ class HeadTrainingConfig:
     members: int = 1
     """Heads fitted from seeds ``seed``, ``seed + 1``, ... on the same drawn events, their
     keep logits averaged (:class:`EventHeadEnsemble`; 1: one head)."""
+    windows: str = "all"
+    """Which windows' rows the head is fitted on and its threshold chosen on: ``"all"``,
+    ``"lit"`` (where the light test finds a light) or ``"unlit"`` (where it finds none),
+    read from the rows' ``light_free`` feature (which the head must then read). The rows
+    drawn are the same at any value (the filter acts after the draw): the expert of a pair
+    (a card's ``unlit_model``) learns only the windows it will judge."""
 
     def __post_init__(self) -> None:
         if isinstance(self.members, bool) or not isinstance(self.members, int):
@@ -241,6 +248,57 @@ class HeadTrainingConfig:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise EdeflareError(f"{name} must be a positive number, got {value!r}")
         check_thin(self.thin)
+        if self.windows not in WINDOW_SETS:
+            raise ParameterError(
+                f"windows must be one of {', '.join(WINDOW_SETS)}, got {self.windows!r}"
+            )
+        if self.windows != "all" and "light_free" not in self.features:
+            raise ParameterError(
+                f"windows={self.windows!r} reads the rows' light_free feature: add light_free "
+                "to the features"
+            )
+
+
+WINDOW_SETS = ("all", "lit", "unlit")
+"""The values of :attr:`HeadTrainingConfig.windows`."""
+
+
+def _in_windows(windows: str, lead: str) -> str:
+    """``lead`` and which windows ``windows`` names, for cards and messages ("" for all)."""
+    found = {"lit": "a light", "unlit": "no light"}.get(windows)
+    return "" if found is None else f"{lead} the windows where the light test finds {found}"
+
+
+def rows_in_windows(
+    data: dict[str, np.ndarray], features: Sequence[str], windows: str
+) -> dict[str, np.ndarray]:
+    """The rows of :func:`collect_features`' ``data`` (drawn with ``features``) from the
+    windows where the light test finds a light (``windows="lit"``), finds none
+    (``"unlit"``), or all of them (``"all"``: ``data`` itself). With a context, only those
+    windows' cells are kept, renumbered in order.
+
+    Examples
+    --------
+    >>> data = {"x": np.array([[0.0], [1.0], [0.0]]), "y": np.array([True, False, True]),
+    ...         "light": np.zeros(3, bool), "source": np.array([0, 0, -1])}
+    >>> rows_in_windows(data, ["light_free"], "unlit")["source"].tolist()
+    [0]
+    >>> rows_in_windows(data, ["light_free"], "lit")["y"].tolist()
+    [True, True]
+    """
+    if windows == "all":
+        return data
+    if windows not in WINDOW_SETS:
+        raise ParameterError(f"windows must be one of {', '.join(WINDOW_SETS)}, got {windows!r}")
+    column = data["x"][:, list(features).index("light_free")]
+    take = column == (1.0 if windows == "unlit" else 0.0)
+    out = {key: data[key][take] for key in (*_ROW_KEYS, "window", "cell") if key in data}
+    if "sizes" in data:  # the windows kept, their cells renumbered 0, 1, ...
+        kept = np.unique(data["window"][take])
+        out["window"] = np.searchsorted(kept, out["window"]).astype(data["window"].dtype)
+        out["sizes"] = data["sizes"][kept]
+        out.update({f"cells_{j:06d}": data[f"cells_{int(i):06d}"] for j, i in enumerate(kept)})
+    return out
 
 
 def check_thin(thin: object) -> float:
@@ -1103,7 +1161,13 @@ def train_head(
     )
     if getattr(net, "head", None) is not None:
         del net.head  # a fresh head over the same network
-    train, val = sets["train"], sets["test"]
+    train, val = (rows_in_windows(sets[k], config.features, config.windows) for k in sets)
+    for split, rows in (("training", train), ("test", val)):
+        if not rows["y"].size:
+            raise EdeflareError(
+                f"no {split} rows{_in_windows(config.windows, ' in')} (windows="
+                f"{config.windows!r}) in {', '.join(map(str, folders))}"
+            )
     targets = None if teacher_head is None else _head_probabilities(teacher_head, train)
     heads = [
         fit_context_head(
@@ -1147,13 +1211,16 @@ def train_head(
         metrics={"head_validation_score": max(r["score"] for r in table)},
         notes=f"a learned keep head over the network of {base.name}"
         + ("" if teacher is None else f", distilled from {Path(teacher).name}")
+        + _in_windows(config.windows, ", fitted on")
         + ", threshold chosen on the data's test splits",
     )
     save_model(run / "model.safetensors", net, card)
     summary = {
         "keep_threshold": threshold,
         "threshold_table": table,
-        "chosen_on": "the datasets' test splits: " + ", ".join(sorted(set(groups))),
+        "chosen_on": "the datasets' test splits: "
+        + ", ".join(sorted(set(groups)))
+        + _in_windows(config.windows, ", in"),
         "train_events": int(train["y"].size),
         "train_keep_share": float(train["y"].mean()),
         "val_events": int(val["y"].size),
