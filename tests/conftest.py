@@ -136,6 +136,23 @@ def random_events(
     return events
 
 
+def write_left_flare_pairs(
+    folder: Path, rng: np.random.Generator, n_train: int, size: SensorSize = (48, 32)
+) -> None:
+    """Paired sequences under ``folder/train`` (``n_train`` files) and ``folder/test`` (one):
+    a dense random burst of flare in the left half (not in gt), a sparse scene in the right,
+    60 ms, at ``size``; no window holds a light the light test finds."""
+    from edeflare.io.dsec import write_dsec_groups
+
+    for split, k in (("train", n_train), ("test", 1)):
+        for i in range(k):
+            scene = random_events(rng, 300, (size[0] // 2, size[1]), t0=0, span_us=60_000)
+            scene["x"] += size[0] // 2
+            flare = random_events(rng, 3_000, (size[0] // 2, size[1]), t0=0, span_us=60_000)
+            inp = np.sort(np.concatenate([scene, flare]), order="t", kind="stable")
+            write_dsec_groups(folder / split / f"s{i}.h5", {"input": inp, "gt": scene}, size)
+
+
 def same_events(a: np.ndarray, b: np.ndarray) -> bool:
     """True when two streams hold the same events in the same order (field by field)."""
     return (

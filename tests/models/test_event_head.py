@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import random_events, same_events
+from conftest import random_events, same_events, write_left_flare_pairs
 from edeflare import deflare
 from edeflare.errors import EdeflareError, ParameterError
 from edeflare.events import make_events
@@ -388,22 +388,11 @@ def test_the_threshold_maximises_the_mean_of_both_datasets_scores():
     assert max(r["score"] for r in table) == 1.0
 
 
-def _pairs(folder, rng, n_files, size=(48, 32)):
-    """Pairs whose flare is a dense burst in the left half (not in gt), sparse scene right."""
-    for split, k in (("train", n_files), ("test", 1)):
-        for i in range(k):
-            scene = random_events(rng, 300, (size[0] // 2, size[1]), t0=0, span_us=60_000)
-            scene["x"] += size[0] // 2
-            flare = random_events(rng, 3_000, (size[0] // 2, size[1]), t0=0, span_us=60_000)
-            inp = np.sort(np.concatenate([scene, flare]), order="t", kind="stable")
-            write_dsec_groups(folder / split / f"s{i}.h5", {"input": inp, "gt": scene}, size)
-
-
 def _two_parts_and_a_base(tmp_path, rng):
     """Two datasets of :func:`_pairs` (two training files each) and an untrained mask.lite."""
     parts = [tmp_path / "mix" / "a", tmp_path / "mix" / "b"]
     for part in parts:
-        _pairs(part, rng, 2)
+        write_left_flare_pairs(part, rng, 2)
     base = tmp_path / "base.safetensors"
     save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
     return parts, base
@@ -428,7 +417,7 @@ def test_train_head_learns_where_the_flare_is_and_resumes_from_its_features(tmp_
     assert json.loads((tmp_path / "run" / "head.json").read_text())["keep_threshold"] == (
         card.keep_threshold
     )
-    _pairs(tmp_path / "new", rng, 0)  # a fresh pair: flare left, scene right
+    write_left_flare_pairs(tmp_path / "new", rng, 0)  # a fresh pair: flare left, scene right
     from edeflare.io.sequence import read_sequence
 
     inp, gt, size, *_ = read_sequence(tmp_path / "new" / "test" / "s0.h5")
@@ -676,7 +665,7 @@ def test_a_context_head_learns_what_its_features_cannot_tell(tmp_path, rng):
     with_context = dataclasses.replace(
         plain, context=2, context_widths=(4, 8), batch_windows=2, epochs=40, lr=1e-2
     )
-    _pairs(tmp_path / "new", rng, 0)
+    write_left_flare_pairs(tmp_path / "new", rng, 0)
     from edeflare.io.sequence import read_sequence
 
     inp, gt, size, *_ = read_sequence(tmp_path / "new" / "test" / "s0.h5")

@@ -7,10 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from conftest import random_events
+from conftest import write_left_flare_pairs
 from edeflare.cli import main
 from edeflare.errors import EdeflareError, ParameterError
-from edeflare.io.dsec import write_dsec_groups
 from edeflare.models import create_model
 from edeflare.models.head_training import HeadTrainingConfig, rows_in_windows, train_head
 from edeflare.models.weights import ModelCard, read_card, save_model
@@ -66,19 +65,8 @@ def test_a_window_set_needs_the_light_free_feature_and_a_known_name():
     assert HeadTrainingConfig(features=("net_logit",)).windows == "all"
 
 
-def _pairs_without_a_light(folder, rng, size=(48, 32)):
-    """Sparse random pairs: flare left, scene right; the light test finds no light."""
-    for split, k in (("train", 2), ("test", 1)):
-        for i in range(k):
-            scene = random_events(rng, 300, (size[0] // 2, size[1]), t0=0, span_us=60_000)
-            scene["x"] += size[0] // 2
-            flare = random_events(rng, 3_000, (size[0] // 2, size[1]), t0=0, span_us=60_000)
-            inp = np.sort(np.concatenate([scene, flare]), order="t", kind="stable")
-            write_dsec_groups(folder / split / f"s{i}.h5", {"input": inp, "gt": scene}, size)
-
-
 def test_an_unlit_expert_learns_the_rows_all_would_and_a_lit_one_finds_none(tmp_path, rng):
-    _pairs_without_a_light(tmp_path / "data", rng)
+    write_left_flare_pairs(tmp_path / "data", rng, 2)  # no light found in any window
     base = tmp_path / "base.safetensors"
     save_model(base, create_model("mask.lite"), ModelCard(preset="mask.lite"))
     config = HeadTrainingConfig(features=FEATURES, hidden=(4,), epochs=2, per_window=300)

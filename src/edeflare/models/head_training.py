@@ -248,10 +248,7 @@ class HeadTrainingConfig:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise EdeflareError(f"{name} must be a positive number, got {value!r}")
         check_thin(self.thin)
-        if self.windows not in WINDOW_SETS:
-            raise ParameterError(
-                f"windows must be one of {', '.join(WINDOW_SETS)}, got {self.windows!r}"
-            )
+        _check_windows(self.windows)
         if self.windows != "all" and "light_free" not in self.features:
             raise ParameterError(
                 f"windows={self.windows!r} reads the rows' light_free feature: add light_free "
@@ -261,6 +258,11 @@ class HeadTrainingConfig:
 
 WINDOW_SETS = ("all", "lit", "unlit")
 """The values of :attr:`HeadTrainingConfig.windows`."""
+
+
+def _check_windows(windows: object) -> None:
+    if windows not in WINDOW_SETS:
+        raise ParameterError(f"windows must be one of {', '.join(WINDOW_SETS)}, got {windows!r}")
 
 
 def _in_windows(windows: str, lead: str) -> str:
@@ -286,10 +288,9 @@ def rows_in_windows(
     >>> rows_in_windows(data, ["light_free"], "lit")["y"].tolist()
     [True, True]
     """
+    _check_windows(windows)
     if windows == "all":
         return data
-    if windows not in WINDOW_SETS:
-        raise ParameterError(f"windows must be one of {', '.join(WINDOW_SETS)}, got {windows!r}")
     column = data["x"][:, list(features).index("light_free")]
     take = column == (1.0 if windows == "unlit" else 0.0)
     out = {key: data[key][take] for key in (*_ROW_KEYS, "window", "cell") if key in data}
